@@ -1,0 +1,109 @@
+"""``continuum-sim`` command line. Bad input → one line on stderr and exit code 2."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+
+import numpy as np
+
+from .configio import ConfigError
+from .geometry import ArmGeometry
+
+
+class UsageError(Exception):
+    """A command-line value is invalid (message names the option)."""
+
+
+def _load_geometry(path: str | None) -> ArmGeometry:
+    return ArmGeometry.default() if path is None else ArmGeometry.from_toml(path)
+
+
+def _cmd_fk(args: argparse.Namespace) -> int:
+    from . import kinematics as kin
+
+    geometry = _load_geometry(args.config)
+    q = np.array(args.q, dtype=float)
+    if not np.all(np.isfinite(q)):
+        raise UsageError("q: all six values must be finite numbers")
+    if args.deg:
+        q = np.radians(q)
+    if q.shape != (2 * geometry.n_sections,):
+        raise UsageError(f"q: expected {2 * geometry.n_sections} values (θ, φ per section), got {q.size}")
+    for k, section in enumerate(geometry.sections):
+        if not 0.0 <= q[2 * k] <= section.max_bend + 1e-12:
+            raise UsageError(
+                f"q: θ{k} must satisfy 0 <= θ{k} <= {section.max_bend_deg:g} deg (got {np.degrees(q[2 * k]):g} deg)"
+            )
+    tip = kin.forward_kinematics(geometry, q)
+    lengths = kin.cable_lengths(geometry, q)
+    delta = lengths - kin.straight_cable_lengths(geometry)
+    result = {
+        "q_rad": q.tolist(),
+        "tip_position_m": tip[:3, 3].tolist(),
+        "tip_rotation": tip[:3, :3].tolist(),
+        "cable_lengths_m": lengths.tolist(),
+        "cable_length_changes_m": delta.tolist(),
+        "motor_angles_rad": (delta / geometry.spool_radius).tolist(),
+    }
+    if args.json:
+        print(json.dumps(result, indent=2))
+        return 0
+    np.set_printoptions(precision=6, suppress=True)
+    print("tip position [mm]: " + " ".join(f"{1000 * x:.4f}" for x in tip[:3, 3]))
+    print("tip rotation:")
+    for row in tip[:3, :3]:
+        print("  " + " ".join(f"{x:+.6f}" for x in row))
+    print("cable                 length [mm]   Δl [mm]   motor [rad]")
+    for name, l, d in zip(geometry.cable_names("arm"), lengths, delta):
+        print(f"  {name:<18}{1000 * l:12.4f}{1000 * d:10.4f}{d / geometry.spool_radius:12.5f}")
+    return 0
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from .report import write_kinematics_report
+
+    geometry = _load_geometry(args.config)
+    out = Path(args.out)
+    write_kinematics_report(geometry, out)
+    print(f"wrote kinematics report to {out}/ (the sample-removal scenario is not built yet)")
+    if args.video:
+        print("--video: no scenario video yet; it arrives with the scenario")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="continuum-sim", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    fk = sub.add_parser("fk", help="tip pose and cable lengths of one configuration")
+    fk.add_argument("q", nargs=6, type=float, metavar="Q", help="θ0 φ0 θ1 φ1 θ2 φ2 (radians unless --deg)")
+    fk.add_argument("--deg", action="store_true", help="angles are in degrees")
+    fk.add_argument("--config", help="arm geometry TOML file")
+    fk.add_argument("--json", action="store_true", help="print JSON")
+    fk.set_defaults(func=_cmd_fk)
+
+    run = sub.add_parser("run", help="the main job: run the sample-removal scenario, write a run folder")
+    run.add_argument("--config", help="configuration TOML file")
+    run.add_argument("--out", default="runs/default", help="run folder (default: runs/default)")
+    run.add_argument("--video", action="store_true", help="render an MP4 off-screen")
+    run.set_defaults(func=_cmd_run)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (ConfigError, UsageError) as exc:
+        print(f"continuum-sim {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,219 @@
+"""The arm's geometry: the one place where section sizes, cable holes and tools live.
+
+Both the kinematic model (``kinematics``) and the MuJoCo model builders read these
+dataclasses, so the simulated robot and the planner can never disagree about a size.
+Units: metres, kilograms, pascals; angles carry a ``_deg`` suffix and are in degrees.
+Defaults follow SPEC §1 (paper Table 1); values the paper does not give are marked
+*assumed* and are configurable.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .configio import (
+    ConfigError,
+    from_dict,
+    load_toml,
+    require_positive,
+    require_range,
+    save_toml,
+    to_dict,
+)
+
+
+@dataclass(frozen=True)
+class SectionGeometry:
+    """One 2-DoF section: ``n_segments`` identical segments bent by three cables."""
+
+    length: float
+    disk_diameter: float
+    hinge_width: float
+    hinge_thickness: float
+    n_segments: int = 10  # assumed
+    cable_angles_deg: tuple[float, float, float] = (0.0, 120.0, 240.0)  # assumed
+    max_bend_deg: float = 90.0
+
+    def __post_init__(self) -> None:
+        require_positive("length", self.length)
+        require_positive("disk_diameter", self.disk_diameter)
+        require_positive("hinge_width", self.hinge_width)
+        require_positive("hinge_thickness", self.hinge_thickness)
+        if isinstance(self.n_segments, bool) or not isinstance(self.n_segments, int):
+            raise ConfigError("n_segments", f"must be an integer >= 1 (got {self.n_segments!r})")
+        if not 1 <= self.n_segments <= 200:
+            raise ConfigError("n_segments", f"must satisfy 1 <= n_segments <= 200 (got {self.n_segments})")
+        if len(self.cable_angles_deg) != 3:
+            raise ConfigError("cable_angles_deg", f"must have exactly 3 entries (got {len(self.cable_angles_deg)})")
+        for i, angle in enumerate(self.cable_angles_deg):
+            require_range(f"cable_angles_deg[{i}]", angle, -360.0, 360.0, low_inclusive=True)
+        wrapped = sorted(a % 360.0 for a in self.cable_angles_deg)
+        gaps = np.diff(wrapped + [wrapped[0] + 360.0])
+        if gaps.min() < 10.0:
+            raise ConfigError("cable_angles_deg", f"cable holes must be at least 10 deg apart (got {self.cable_angles_deg})")
+        require_range("max_bend_deg", self.max_bend_deg, 0.0, 180.0)
+        if self.hinge_width >= self.disk_diameter / 2:
+            raise ConfigError(
+                "hinge_width",
+                f"must satisfy 0 < hinge_width < disk_diameter/2 = {self.disk_diameter / 2:g} (got {self.hinge_width:g})",
+            )
+
+    @property
+    def pitch(self) -> float:
+        """Distance between consecutive disk centres."""
+        return self.length / self.n_segments
+
+    @property
+    def max_bend(self) -> float:
+        """Largest bending angle of the section, radians."""
+        return math.radians(self.max_bend_deg)
+
+    @property
+    def cable_angles(self) -> np.ndarray:
+        return np.radians(np.asarray(self.cable_angles_deg, dtype=float))
+
+
+@dataclass(frozen=True)
+class Material:
+    """Flexure-hinge material (printed polymer by default; *assumed*)."""
+
+    youngs_modulus: float = 2.0e9
+    poisson_ratio: float = 0.38
+    density: float = 1250.0
+
+    def __post_init__(self) -> None:
+        require_range("youngs_modulus", self.youngs_modulus, 0.0, 1e13)
+        require_range("poisson_ratio", self.poisson_ratio, -1.0, 0.5, high_inclusive=False)
+        require_range("density", self.density, 0.0, 1e5)
+
+    @property
+    def shear_modulus(self) -> float:
+        return self.youngs_modulus / (2.0 * (1.0 + self.poisson_ratio))
+
+
+@dataclass(frozen=True)
+class ToolGeometry:
+    """Tool lengths beyond the last disk centre along the tip's z (*assumed*)."""
+
+    grinder_length: float = 0.060
+    gripper_length: float = 0.070
+
+    def __post_init__(self) -> None:
+        require_range("grinder_length", self.grinder_length, 0.0, 1.0, low_inclusive=True)
+        require_range("gripper_length", self.gripper_length, 0.0, 1.0, low_inclusive=True)
+
+    def length(self, tool: str) -> float:
+        if tool == "grinder":
+            return self.grinder_length
+        if tool == "gripper":
+            return self.gripper_length
+        if tool == "none":
+            return 0.0
+        raise ConfigError("tool", f"must be one of 'grinder', 'gripper', 'none' (got {tool!r})")
+
+
+def _default_sections() -> tuple[SectionGeometry, ...]:
+    # Base -> tip; the paper numbers sections from the tip (its Section 3 is our index 0).
+    return (
+        SectionGeometry(0.210, 0.046, 0.006, 0.001, cable_angles_deg=(0.0, 120.0, 240.0)),
+        SectionGeometry(0.180, 0.043, 0.005, 0.001, cable_angles_deg=(40.0, 160.0, 280.0)),
+        SectionGeometry(0.150, 0.040, 0.004, 0.001, cable_angles_deg=(80.0, 200.0, 320.0)),
+    )
+
+
+@dataclass(frozen=True)
+class ArmGeometry:
+    """A whole arm, base to tip. ``q = (θ0, φ0, θ1, φ1, θ2, φ2)`` follows the section order."""
+
+    sections: tuple[SectionGeometry, ...] = field(default_factory=_default_sections)
+    cable_hole_radius: float = 0.015  # assumed
+    disk_thickness: float = 0.003  # assumed
+    spool_radius: float = 0.010  # assumed: motor spool radius, converts Δl to motor angle
+    material: Material = field(default_factory=Material)
+    tools: ToolGeometry = field(default_factory=ToolGeometry)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.sections, tuple) or not 1 <= len(self.sections) <= 10:
+            raise ConfigError("sections", "must be a list of 1 to 10 sections")
+        for i, section in enumerate(self.sections):
+            if not isinstance(section, SectionGeometry):
+                raise ConfigError(f"sections[{i}]", "must be a section table")
+        require_range("disk_thickness", self.disk_thickness, 0.0, 0.1)
+        require_range("spool_radius", self.spool_radius, 0.0, 1.0)
+        smallest = min(s.disk_diameter for s in self.sections) / 2.0
+        require_range("cable_hole_radius", self.cable_hole_radius, 0.0, 1.0)
+        if self.cable_hole_radius >= smallest:
+            raise ConfigError(
+                "cable_hole_radius",
+                f"must satisfy 0 < cable_hole_radius < smallest disk radius {smallest:g} m "
+                f"(holes must lie inside every disk; got {self.cable_hole_radius:g})",
+            )
+        for i, section in enumerate(self.sections):
+            if self.disk_thickness >= section.pitch:
+                raise ConfigError(
+                    "disk_thickness",
+                    f"must be smaller than every segment pitch; section {i} has pitch "
+                    f"{section.pitch:g} m (got {self.disk_thickness:g})",
+                )
+
+    # -------------------------------------------------------------- construction
+    @classmethod
+    def default(cls) -> "ArmGeometry":
+        """SPEC §1's arm (paper Table 1 plus the documented assumptions)."""
+        return cls()
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "ArmGeometry":
+        return from_dict(cls, data)
+
+    @classmethod
+    def from_toml(cls, path: str | os.PathLike[str]) -> "ArmGeometry":
+        """Load from TOML; errors name the file and the field."""
+        try:
+            return from_dict(cls, load_toml(path))
+        except ConfigError as exc:
+            if exc.field.startswith(str(path)):
+                raise
+            raise exc.under(f"{path}: ") from None
+
+    def to_dict(self) -> dict:
+        return to_dict(self)
+
+    def save_toml(self, path: str | os.PathLike[str]) -> None:
+        save_toml(self, path)
+
+    # -------------------------------------------------------------- derived facts
+    @property
+    def n_sections(self) -> int:
+        return len(self.sections)
+
+    @property
+    def n_cables(self) -> int:
+        return 3 * self.n_sections
+
+    @property
+    def length(self) -> float:
+        return sum(s.length for s in self.sections)
+
+    @property
+    def n_disks(self) -> int:
+        """Disks including the base plate (disk 0)."""
+        return 1 + sum(s.n_segments for s in self.sections)
+
+    @property
+    def max_bend(self) -> np.ndarray:
+        return np.array([s.max_bend for s in self.sections])
+
+    def cable_holes(self) -> np.ndarray:
+        """(n_cables, 3) hole positions in a disk frame, section-major, base→tip."""
+        angles = np.concatenate([s.cable_angles for s in self.sections])
+        r = self.cable_hole_radius
+        return np.stack([r * np.cos(angles), r * np.sin(angles), np.zeros_like(angles)], axis=1)
+
+    def cable_names(self, arm: str) -> list[str]:
+        """SPEC §6 tendon names, in ``cable_lengths`` order."""
+        return [f"{arm}/cable_{k}_{c}" for k in range(self.n_sections) for c in range(3)]

@@ -1,0 +1,377 @@
+"""Discrete piecewise-constant-curvature kinematics (SPEC §2), exact for the MuJoCo model.
+
+Each section is parameterised internally by its *bending coordinates*
+``(u, v) = θ (cos φ, sin φ)``: the section's rotation is the rotation vector
+``(-v, u, 0)``, smooth through the straight pose where φ is undefined. ``q`` in the
+public API is ``(θ0, φ0, θ1, φ1, ...)``; ``w`` is ``(u0, v0, u1, v1, ...)``.
+
+A segment of pitch p carries its upper disk by
+``Trans(0,0,p/2) · Rz(φ)Ry(θ/n)Rz(-φ) · Trans(0,0,p/2)``, so the section's end lies at
+``(p/2) Σ_j c_j R^j e_z`` with weights ``c = (1, 2, …, 2, 1)`` over ``j = 0..n`` and
+``R^j = exp(j/n · (-v, u, 0))``. Writing that sum in terms of ``sinc`` keeps every
+expression and its derivative finite at θ = 0. All functions broadcast over leading
+batch dimensions of ``q``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .geometry import ArmGeometry, SectionGeometry
+
+Array = NDArray[np.float64]
+
+_SMALL = 1e-4  # below this |a|, Taylor series replace ratios of trig functions
+
+
+# ------------------------------------------------------------------ scalar helpers
+def _sinc(a: Array) -> Array:
+    """sin(a)/a."""
+    return np.sinc(a / np.pi)
+
+
+def _dsinc_over_a(a: Array) -> Array:
+    """(d/da sinc a)/a = (a cos a - sin a)/a³, finite at 0 (-1/3)."""
+    a = np.asarray(a, dtype=float)
+    small = np.abs(a) < 1e-2
+    safe = np.where(small, 1.0, a)
+    exact = (safe * np.cos(safe) - np.sin(safe)) / safe**3
+    a2 = a * a
+    series = -1.0 / 3.0 + a2 / 30.0 - a2 * a2 / 840.0 + a2**3 / 45360.0
+    return np.where(small, series, exact)
+
+
+def _one_minus_cos_over_sq(a: Array) -> Array:
+    """(1 - cos a)/a²."""
+    a = np.asarray(a, dtype=float)
+    small = np.abs(a) < 1e-2
+    safe = np.where(small, 1.0, a)
+    a2 = a * a
+    return np.where(small, 0.5 - a2 / 24.0 + a2 * a2 / 720.0, (1.0 - np.cos(safe)) / safe**2)
+
+
+def _a_minus_sin_over_cube(a: Array) -> Array:
+    """(a - sin a)/a³."""
+    a = np.asarray(a, dtype=float)
+    small = np.abs(a) < 1e-2
+    safe = np.where(small, 1.0, a)
+    a2 = a * a
+    return np.where(small, 1.0 / 6.0 - a2 / 120.0 + a2 * a2 / 5040.0, (safe - np.sin(safe)) / safe**3)
+
+
+def skew(w: Array) -> Array:
+    """(..., 3) -> (..., 3, 3) cross-product matrices."""
+    w = np.asarray(w, dtype=float)
+    z = np.zeros(w.shape[:-1])
+    return np.stack(
+        [
+            np.stack([z, -w[..., 2], w[..., 1]], -1),
+            np.stack([w[..., 2], z, -w[..., 0]], -1),
+            np.stack([-w[..., 1], w[..., 0], z], -1),
+        ],
+        -2,
+    )
+
+
+def exp_so3(w: Array) -> Array:
+    """Rodrigues: rotation vectors (..., 3) -> rotation matrices (..., 3, 3)."""
+    w = np.asarray(w, dtype=float)
+    theta = np.linalg.norm(w, axis=-1)
+    K = skew(w)
+    A = _sinc(theta)[..., None, None]
+    B = _one_minus_cos_over_sq(theta)[..., None, None]
+    return np.eye(3) + A * K + B * (K @ K)
+
+
+def log_so3(R: Array) -> Array:
+    """Rotation matrices (..., 3, 3) -> rotation vectors (..., 3), robust near 0 and π."""
+    R = np.asarray(R, dtype=float)
+    cos = np.clip((np.trace(R, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
+    theta = np.arccos(cos)
+    vee = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
+    out = vee / (2.0 * _sinc(theta))[..., None]
+    near_pi = theta > np.pi - 1e-2
+    if np.any(near_pi):
+        # vee/sin loses precision near π; the quaternion route does not.
+        from scipy.spatial.transform import Rotation
+
+        out[near_pi] = Rotation.from_matrix(R[near_pi]).as_rotvec()
+    return out
+
+
+def left_jacobian_so3(w: Array) -> Array:
+    """J_l(w): d exp(w) exp(w)ᵀ = [J_l(w) dw]×, i.e. spatial angular velocity per dw."""
+    w = np.asarray(w, dtype=float)
+    theta = np.linalg.norm(w, axis=-1)
+    K = skew(w)
+    return (
+        np.eye(3)
+        + _one_minus_cos_over_sq(theta)[..., None, None] * K
+        + _a_minus_sin_over_cube(theta)[..., None, None] * (K @ K)
+    )
+
+
+# ------------------------------------------------------------ coordinate changes
+def _as_q(geometry: ArmGeometry, q: ArrayLike) -> Array:
+    q = np.asarray(q, dtype=float)
+    n = 2 * geometry.n_sections
+    if q.shape[-1:] != (n,):
+        raise ValueError(f"q must have {n} entries (θ, φ per section); got shape {q.shape}")
+    return q
+
+
+def to_bending(q: ArrayLike) -> Array:
+    """(θ, φ) pairs -> bending coordinates (u, v) pairs."""
+    q = np.asarray(q, dtype=float)
+    theta, phi = q[..., 0::2], q[..., 1::2]
+    w = np.empty_like(q)
+    w[..., 0::2] = theta * np.cos(phi)
+    w[..., 1::2] = theta * np.sin(phi)
+    return w
+
+
+def from_bending(w: ArrayLike) -> Array:
+    """(u, v) pairs -> (θ, φ) pairs with θ >= 0 and φ in (-π, π]; φ = 0 where θ = 0."""
+    w = np.asarray(w, dtype=float)
+    u, v = w[..., 0::2], w[..., 1::2]
+    q = np.empty_like(w)
+    q[..., 0::2] = np.hypot(u, v)
+    q[..., 1::2] = np.arctan2(v, u)
+    return q
+
+
+def bending_chain_matrix(q: ArrayLike) -> Array:
+    """d(u,v)/d(θ,φ), block diagonal (..., 2S, 2S): maps bending-Jacobians to q-Jacobians."""
+    q = np.asarray(q, dtype=float)
+    theta, phi = q[..., 0::2], q[..., 1::2]
+    S = theta.shape[-1]
+    M = np.zeros(q.shape[:-1] + (2 * S, 2 * S))
+    for k in range(S):
+        c, s, t = np.cos(phi[..., k]), np.sin(phi[..., k]), theta[..., k]
+        M[..., 2 * k, 2 * k] = c
+        M[..., 2 * k, 2 * k + 1] = -t * s
+        M[..., 2 * k + 1, 2 * k] = s
+        M[..., 2 * k + 1, 2 * k + 1] = t * c
+    return M
+
+
+# --------------------------------------------------------------- section level
+def _section_weights(n: int) -> tuple[Array, Array]:
+    """Fractions j/n and weights (1, 2, …, 2, 1) of the section-end sum."""
+    beta = np.arange(n + 1) / n
+    c = np.full(n + 1, 2.0)
+    c[0] = c[-1] = 1.0
+    return beta, c
+
+
+def section_transform_bending(section: SectionGeometry, u: ArrayLike, v: ArrayLike, *, derivatives: bool = False):
+    """Section end pose in its base frame from bending coordinates.
+
+    Returns ``(R, p)`` with shapes (..., 3, 3), (..., 3); with ``derivatives`` also
+    ``(dp, dw)``: (..., 2, 3) position derivatives and (..., 2, 3) spatial angular
+    velocities per unit (du, dv), both in the section's base frame.
+    """
+    u = np.asarray(u, dtype=float)
+    v = np.asarray(v, dtype=float)
+    theta = np.hypot(u, v)
+    beta, c = _section_weights(section.n_segments)
+    half = section.pitch / 2.0
+    a = theta[..., None] * beta  # (..., n+1)
+    g = half * np.sum(c * beta * _sinc(a), axis=-1)  # x(θ)/θ
+    z = half * np.sum(c * np.cos(a), axis=-1)
+    rotvec = np.stack([-v, u, np.zeros_like(u)], -1)
+    R = exp_so3(rotvec)
+    p = np.stack([g * u, g * v, z], -1)
+    if not derivatives:
+        return R, p
+    h = half * np.sum(c * beta**3 * _dsinc_over_a(a), axis=-1)  # g'(θ)/θ
+    m = -half * np.sum(c * beta**2 * _sinc(a), axis=-1)  # z'(θ)/θ
+    dp = np.stack(
+        [
+            np.stack([g + u * u * h, u * v * h, m * u], -1),
+            np.stack([u * v * h, g + v * v * h, m * v], -1),
+        ],
+        -2,
+    )
+    Jl = left_jacobian_so3(rotvec)
+    dw = np.stack([Jl[..., :, 1], -Jl[..., :, 0]], -2)  # d rotvec/du = e_y, /dv = -e_x
+    return R, p, dp, dw
+
+
+def continuous_section_transform_bending(section: SectionGeometry, u: ArrayLike, v: ArrayLike) -> tuple[Array, Array]:
+    """The n → ∞ limit: a circular arc, x = L(1-cos θ)/θ, z = L sin θ/θ in its plane."""
+    u = np.asarray(u, dtype=float)
+    v = np.asarray(v, dtype=float)
+    theta = np.hypot(u, v)
+    L = section.length
+    g = L * _one_minus_cos_over_sq(theta)
+    R = exp_so3(np.stack([-v, u, np.zeros_like(u)], -1))
+    return R, np.stack([g * u, g * v, L * _sinc(theta)], -1)
+
+
+def _homogeneous(R: Array, p: Array) -> Array:
+    T = np.zeros(R.shape[:-2] + (4, 4))
+    T[..., :3, :3] = R
+    T[..., :3, 3] = p
+    T[..., 3, 3] = 1.0
+    return T
+
+
+def _base(base: ArrayLike | None) -> Array:
+    return np.eye(4) if base is None else np.asarray(base, dtype=float)
+
+
+# ------------------------------------------------------------------- arm level
+def forward_kinematics_bending(geometry: ArmGeometry, w: ArrayLike, base: ArrayLike | None = None, tool_length: float = 0.0) -> Array:
+    """Tip pose (4, 4) (or tool-centre pose with ``tool_length``) from bending coordinates."""
+    w = np.asarray(w, dtype=float)
+    T = np.broadcast_to(_base(base), w.shape[:-1] + (4, 4)).copy()
+    for k, section in enumerate(geometry.sections):
+        R, p = section_transform_bending(section, w[..., 2 * k], w[..., 2 * k + 1])
+        T = T @ _homogeneous(R, p)
+    if tool_length:
+        T[..., :3, 3] += tool_length * T[..., :3, 2]
+    return T
+
+
+def forward_kinematics(geometry: ArmGeometry, q: ArrayLike, base: ArrayLike | None = None) -> Array:
+    """Arm tip (last disk centre) pose (4, 4) in the arm base frame (or ``base`` · that)."""
+    return forward_kinematics_bending(geometry, to_bending(_as_q(geometry, q)), base)
+
+
+def tool_centre_pose(geometry: ArmGeometry, q: ArrayLike, tool: str | float, base: ArrayLike | None = None) -> Array:
+    """Tool-centre-point pose: the tip moved along its z by the tool length."""
+    length = geometry.tools.length(tool) if isinstance(tool, str) else float(tool)
+    return forward_kinematics_bending(geometry, to_bending(_as_q(geometry, q)), base, length)
+
+
+def continuous_forward_kinematics(geometry: ArmGeometry, q: ArrayLike, base: ArrayLike | None = None) -> Array:
+    """Tip pose of the continuous constant-curvature arcs (the n → ∞ limit)."""
+    w = to_bending(_as_q(geometry, q))
+    T = np.broadcast_to(_base(base), w.shape[:-1] + (4, 4)).copy()
+    for k, section in enumerate(geometry.sections):
+        T = T @ _homogeneous(*continuous_section_transform_bending(section, w[..., 2 * k], w[..., 2 * k + 1]))
+    return T
+
+
+def segment_transform(section: SectionGeometry, theta: ArrayLike, phi: ArrayLike) -> Array:
+    """SPEC §2's T_seg = Trans(p/2) · Rz(φ)Ry(θ/n)Rz(-φ) · Trans(p/2) as (..., 4, 4)."""
+    theta = np.asarray(theta, dtype=float)
+    phi = np.asarray(phi, dtype=float)
+    n = section.n_segments
+    R = exp_so3(np.stack([-np.sin(phi), np.cos(phi), np.zeros_like(phi)], -1) * (theta / n)[..., None])
+    half = np.array([0.0, 0.0, section.pitch / 2.0])
+    return _homogeneous(R, half + R @ half)
+
+
+def disk_frames(geometry: ArmGeometry, q: ArrayLike, base: ArrayLike | None = None) -> Array:
+    """Pose of every disk centre, base plate first: (..., n_disks, 4, 4)."""
+    q = _as_q(geometry, q)
+    T = np.broadcast_to(_base(base), q.shape[:-1] + (4, 4)).copy()
+    frames = [T]
+    for k, section in enumerate(geometry.sections):
+        step = segment_transform(section, q[..., 2 * k], q[..., 2 * k + 1])
+        for _ in range(section.n_segments):
+            T = T @ step
+            frames.append(T)
+    return np.stack(frames, axis=-3)
+
+
+def section_end_frames(geometry: ArmGeometry, q: ArrayLike, base: ArrayLike | None = None) -> Array:
+    """Base frame then the end frame of each section: (..., S+1, 4, 4)."""
+    w = to_bending(_as_q(geometry, q))
+    T = np.broadcast_to(_base(base), w.shape[:-1] + (4, 4)).copy()
+    frames = [T]
+    for k, section in enumerate(geometry.sections):
+        T = T @ _homogeneous(*section_transform_bending(section, w[..., 2 * k], w[..., 2 * k + 1]))
+        frames.append(T)
+    return np.stack(frames, axis=-3)
+
+
+def jacobian_bending(geometry: ArmGeometry, w: ArrayLike, base: ArrayLike | None = None, tool_length: float = 0.0) -> tuple[Array, Array]:
+    """Pose and geometric Jacobian w.r.t. bending coordinates.
+
+    Returns ``(T, J)``: T (..., 4, 4) the tip (or tool-centre) pose; J (..., 6, 2S) with rows
+    0-2 the point's linear velocity and rows 3-5 the angular velocity, both in the frame
+    that ``base`` maps into (the arm base frame by default).
+    """
+    w = np.asarray(w, dtype=float)
+    S = geometry.n_sections
+    T = np.broadcast_to(_base(base), w.shape[:-1] + (4, 4)).copy()
+    parts = []
+    for k, section in enumerate(geometry.sections):
+        R, p, dp, dw = section_transform_bending(section, w[..., 2 * k], w[..., 2 * k + 1], derivatives=True)
+        Rk = T[..., :3, :3]
+        # Spatial derivatives of this section, expressed in the output frame.
+        dp_w = np.einsum("...ij,...cj->...ci", Rk, dp)
+        dw_w = np.einsum("...ij,...cj->...ci", Rk, dw)
+        T = T @ _homogeneous(R, p)
+        parts.append((dp_w, dw_w, T[..., :3, 3].copy()))
+    point = T[..., :3, 3] + tool_length * T[..., :3, 2]
+    T_out = T.copy()
+    T_out[..., :3, 3] = point
+    J = np.zeros(w.shape[:-1] + (6, 2 * S))
+    for k, (dp_w, dw_w, end) in enumerate(parts):
+        lever = point - end
+        for c in range(2):
+            J[..., :3, 2 * k + c] = dp_w[..., c, :] + np.cross(dw_w[..., c, :], lever)
+            J[..., 3:, 2 * k + c] = dw_w[..., c, :]
+    return T_out, J
+
+
+def jacobian(geometry: ArmGeometry, q: ArrayLike, base: ArrayLike | None = None, tool_length: float = 0.0) -> Array:
+    """Geometric Jacobian (..., 6, 2S) of the tip (or tool-centre) pose w.r.t. q = (θ, φ)."""
+    q = _as_q(geometry, q)
+    _, J = jacobian_bending(geometry, to_bending(q), base, tool_length)
+    return J @ bending_chain_matrix(q)
+
+
+# ---------------------------------------------------------------------- cables
+def _cable_sections(geometry: ArmGeometry) -> Array:
+    return np.repeat(np.arange(geometry.n_sections), 3)
+
+
+def straight_cable_lengths(geometry: ArmGeometry) -> Array:
+    """(n_cables,) cable lengths of the straight arm: Σ of the lengths of the sections passed."""
+    cumulative = np.cumsum([s.length for s in geometry.sections])
+    return cumulative[_cable_sections(geometry)]
+
+
+def segment_cable_lengths_bending(geometry: ArmGeometry, w: ArrayLike) -> Array:
+    """(..., S, n_cables) |l| of one segment of section m for every cable hole (paper eq. 5-7)."""
+    w = np.asarray(w, dtype=float)
+    holes = geometry.cable_holes()  # (C, 3)
+    out = []
+    for m, section in enumerate(geometry.sections):
+        n = section.n_segments
+        rotvec = np.stack([-w[..., 2 * m + 1], w[..., 2 * m], np.zeros_like(w[..., 2 * m])], -1) / n
+        R = exp_so3(rotvec)  # (..., 3, 3)
+        half = np.array([0.0, 0.0, section.pitch / 2.0])
+        # l = t + R (s + h) - h, for all holes at once.
+        l = half + np.einsum("...ij,cj->...ci", R, half + holes) - holes
+        out.append(np.linalg.norm(l, axis=-1))
+    return np.stack(out, axis=-2)
+
+
+def cable_lengths_bending(geometry: ArmGeometry, w: ArrayLike) -> Array:
+    """(..., n_cables) cable lengths from bending coordinates."""
+    seg = segment_cable_lengths_bending(geometry, w)
+    counts = np.array([s.n_segments for s in geometry.sections], dtype=float)
+    passes = np.arange(geometry.n_sections)[:, None] <= _cable_sections(geometry)[None, :]  # (S, C)
+    return np.sum(seg * (counts[:, None] * passes), axis=-2)
+
+
+def cable_lengths(geometry: ArmGeometry, q: ArrayLike) -> Array:
+    """(..., 9) cable lengths in metres, section-major base→tip (section 0 cables 0,1,2, …)."""
+    return cable_lengths_bending(geometry, to_bending(_as_q(geometry, q)))
+
+
+def cable_length_changes(geometry: ArmGeometry, q: ArrayLike) -> Array:
+    """Δl = length − straight length; negative where the motor has reeled cable in."""
+    return cable_lengths(geometry, q) - straight_cable_lengths(geometry)
+
+
+def motor_angles(geometry: ArmGeometry, q: ArrayLike) -> Array:
+    """Motor angles (rad) = Δl / spool radius."""
+    return cable_length_changes(geometry, q) / geometry.spool_radius
