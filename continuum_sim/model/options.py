@@ -1,0 +1,71 @@
+"""Model fidelity and actuation options: how a geometry becomes a MuJoCo model."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Literal
+
+from ..configio import ConfigError, require_positive, require_range
+from ..geometry import ArmGeometry
+
+
+@dataclass(frozen=True)
+class ModelOptions:
+    """Options of the generated model; the physical robot itself lives in ``ArmGeometry``.
+
+    ``segments_per_section`` = 0 keeps the physical segment count; another value
+    resamples each section with that many joints while the per-joint stiffness scales as
+    k = n·EI/L, so the section's response does not change.
+    """
+
+    joint: Literal["ball", "hinge_pair"] = "ball"
+    segments_per_section: int = 0
+    stiffness_scale: float = 1.0  # multiplies every flexure stiffness (the design sweep knob)
+    joint_damping: float = 0.02  # N·m·s/rad per joint, per unit physical segment count (scaled like stiffness)
+    joint_armature: float = 1e-5  # kg·m², numerical regulariser for light disks
+    cable_max_force: float = 150.0  # N, Fmax of each tension-only cable actuator
+    cable_kp: float = 3.0e4  # N/m, motor position-loop gain expressed at the cable
+    cable_kv: float = 60.0  # N·s/m, velocity damping of the motor loop at the cable
+    grinder_mass: float = 0.08  # kg; the spindle motor sits in the pack (flexible shaft)
+    gripper_mass: float = 0.06  # kg
+    timestep: float = 0.001
+    integrator: Literal["implicitfast", "implicit", "Euler", "RK4"] = "implicitfast"
+    tendons: bool = True  # False: joints only (for benchmarks and pure-beam tests)
+
+    def __post_init__(self) -> None:
+        if self.joint not in ("ball", "hinge_pair"):
+            raise ConfigError("joint", f"must be 'ball' or 'hinge_pair' (got {self.joint!r})")
+        if isinstance(self.segments_per_section, bool) or not isinstance(self.segments_per_section, int):
+            raise ConfigError("segments_per_section", "must be an integer")
+        if not 0 <= self.segments_per_section <= 200:
+            raise ConfigError(
+                "segments_per_section",
+                f"must satisfy 0 <= segments_per_section <= 200, 0 = physical count (got {self.segments_per_section})",
+            )
+        require_range("stiffness_scale", self.stiffness_scale, 0.0, 1e4)
+        require_range("joint_damping", self.joint_damping, 0.0, 100.0, low_inclusive=True)
+        require_range("joint_armature", self.joint_armature, 0.0, 1.0, low_inclusive=True)
+        require_positive("cable_max_force", self.cable_max_force)
+        require_positive("cable_kp", self.cable_kp)
+        require_range("cable_kv", self.cable_kv, 0.0, 1e6, low_inclusive=True)
+        require_range("grinder_mass", self.grinder_mass, 0.0, 10.0)
+        require_range("gripper_mass", self.gripper_mass, 0.0, 10.0)
+        require_range("timestep", self.timestep, 0.0, 0.01)
+        if self.integrator not in ("implicitfast", "implicit", "Euler", "RK4"):
+            raise ConfigError("integrator", f"must be one of implicitfast, implicit, Euler, RK4 (got {self.integrator!r})")
+
+
+def model_geometry(geometry: ArmGeometry, options: ModelOptions) -> ArmGeometry:
+    """The geometry the model is built on (segment count resampled when asked).
+
+    Kinematics evaluated on this geometry is exact for the generated model.
+    """
+    if options.segments_per_section == 0:
+        return geometry
+    n = options.segments_per_section
+    sections = tuple(dataclasses.replace(s, n_segments=n) for s in geometry.sections)
+    try:
+        return dataclasses.replace(geometry, sections=sections)
+    except ConfigError as exc:
+        raise ConfigError("segments_per_section", f"{n} segments make the disks overlap ({exc})") from None
