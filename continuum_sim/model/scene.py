@@ -1,0 +1,397 @@
+"""The sample-removal scene (SPEC §5, §6): pack, bench, clamp, foam plate, tools, arms.
+
+``build_scene`` is a pure function from configuration to an MJCF tree: it holds no
+simulation state and composes the parts with ``site.attach()`` (dm_control style).
+Runtime behaviour (cells disappearing, the weld letting go) lives in ``cutting``.
+
+World: z up, pack top face at z = 0, arms along +z from ``layout.left/right``. The
+plate is static (clamped); its sample corner is a free body welded to it by the
+equality ``sample_weld``; an L-shaped row of box cells (``kerf_000`` …) fills the kerf
+between them. Foam contacts are soft (``layout.plate.contact_solref/solimp``) and win
+over the other geom's parameters by collision priority, except against the cutter,
+whose frictionless contact wins and which borrows the foam's softness.
+
+Names (after attachment): ``left/…`` grinder arm, ``right/…`` gripper arm, tendons and
+actuators ``<arm>/cable_<section>_<c>``, sites ``<arm>/tcp``, spindle actuator
+``left/grinder/spindle``, gripper cable tendon and actuator ``right/gripper/cable``,
+cutter geom ``left/grinder/cutter``, bodies ``plate`` and ``sample``, equality
+``sample_weld``, cameras ``overview`` and ``cut_closeup``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from dm_control import mjcf
+
+from ..configio import ConfigError, require_range
+from ..geometry import ArmGeometry
+from ..layout import TaskLayout
+from . import tools as tools_mod
+from .options import ModelOptions, model_geometry
+from .tools import FOAM_PRIORITY, ToolOptions
+
+ArmBuilder = Callable[[ArmGeometry, ModelOptions, str, str], mjcf.RootElement]
+
+SCENE_MODEL = "dual_arm"
+ARMS = ("left", "right")
+PLATE_BODY = "plate"
+SAMPLE_BODY = "sample"
+SAMPLE_WELD = "sample_weld"
+KERF_PREFIX = "kerf_"
+CAMERAS = ("overview", "cut_closeup")
+
+
+@dataclass(frozen=True)
+class SceneOptions:
+    """Scene details beyond the task layout (*assumed*; SI units)."""
+
+    tools: ToolOptions = field(default_factory=ToolOptions)
+    kerf_cell_length: float = 0.005  # target cell length along the kerf (actual: leg split evenly)
+    sample_gap: float = 0.0002  # clearance between the sample and the kerf cells
+    foam_friction: float = 1.0
+    bench_height: float = 0.75  # floor is this far below the bench top (= pack bottom)
+    render_width: int = 1280
+    render_height: int = 720
+
+    def __post_init__(self) -> None:
+        require_range("kerf_cell_length", self.kerf_cell_length, 0.0005, 0.1, low_inclusive=True)
+        require_range("sample_gap", self.sample_gap, 0.0, 0.002, low_inclusive=True)
+        require_range("foam_friction", self.foam_friction, 0.0, 10.0)
+        require_range("bench_height", self.bench_height, 0.05, 3.0, low_inclusive=True)
+        for name in ("render_width", "render_height"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or not 16 <= value <= 8192:
+                raise ConfigError(name, f"must be an integer with 16 <= {name} <= 8192 (got {value!r})")
+
+
+# ------------------------------------------------------------------ small helpers
+def look_at(position: np.ndarray, target: np.ndarray, up: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> tuple[float, ...]:
+    """MJCF ``xyaxes`` of a camera at ``position`` looking at ``target`` (MuJoCo cameras look along −z)."""
+    forward = np.asarray(target, float) - np.asarray(position, float)
+    forward /= np.linalg.norm(forward)
+    x = np.cross(forward, up)
+    x /= np.linalg.norm(x)
+    y = np.cross(x, forward)
+    return tuple(float(v) for v in np.concatenate([x, y]))
+
+
+def _yaw_quat(yaw: float) -> tuple[float, float, float, float]:
+    return (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
+
+
+@dataclass(frozen=True)
+class KerfCell:
+    """One removable cell: centre on the plate mid-plane, length along the kerf, yaw."""
+
+    centre: tuple[float, float, float]
+    length: float
+    yaw: float
+
+
+def kerf_cells(layout: TaskLayout, cell_length: float) -> list[KerfCell]:
+    """Cells tiling the kerf band (kerf-width wide, through the plate) along the polyline.
+
+    Each leg is split into equal cells no longer than ``cell_length``; the first leg
+    runs on by half a kerf width so the corner square is covered exactly once.
+    """
+    plate = layout.plate
+    points = plate.kerf_polyline()[:, :2]
+    half = plate.kerf_width / 2
+    z = plate.top_z - plate.thickness / 2
+    cells: list[KerfCell] = []
+    n_legs = len(points) - 1
+    for i in range(n_legs):
+        a, b = points[i], points[i + 1]
+        u = (b - a) / np.linalg.norm(b - a)
+        start = a + (half * u if i > 0 else 0.0)
+        end = b + (half * u if i < n_legs - 1 else 0.0)
+        leg = float(np.linalg.norm(end - start))
+        n = max(1, math.ceil(leg / cell_length - 1e-9))
+        yaw = math.atan2(u[1], u[0])
+        for j in range(n):
+            c = start + (j + 0.5) / n * (end - start)
+            cells.append(KerfCell((float(c[0]), float(c[1]), z), leg / n, yaw))
+    return cells
+
+
+def _plate_extents(layout: TaskLayout) -> dict[str, float]:
+    plate = layout.plate
+    ext = {
+        "x0": plate.corner_x - plate.size[0],
+        "x1": plate.corner_x,
+        "y0": plate.corner_y,
+        "y1": plate.corner_y + plate.size[1],
+        "xk": plate.corner_x - plate.sample_x - plate.kerf_width,  # kerf band's outer x
+        "yk": plate.corner_y + plate.sample_y + plate.kerf_width,  # kerf band's outer y
+    }
+    if ext["xk"] - ext["x0"] <= layout.clamp_length + 0.005:
+        raise ConfigError(
+            "plate.sample_x",
+            f"sample plus kerf must leave more than clamp_length + 5 mm of plate to clamp "
+            f"(plate {plate.size[0]:g} m, sample_x + kerf_width = {plate.sample_x + plate.kerf_width:g} m)",
+        )
+    if ext["yk"] >= ext["y1"]:
+        raise ConfigError(
+            "plate.sample_y",
+            f"sample_y + kerf_width must be < plate width {plate.size[1]:g} m (got {plate.sample_y + plate.kerf_width:g})",
+        )
+    return ext
+
+
+def _box(body: mjcf.Element, name: str, lo: tuple[float, float, float], hi: tuple[float, float, float], origin: np.ndarray, **kw) -> mjcf.Element:
+    lo_a, hi_a = np.asarray(lo, float), np.asarray(hi, float)
+    return body.add("geom", name=name, type="box", size=tuple((hi_a - lo_a) / 2), pos=tuple((hi_a + lo_a) / 2 - origin), **kw)
+
+
+# ------------------------------------------------------------------ parts
+def _add_assets_and_visuals(root: mjcf.RootElement, layout: TaskLayout, scene: SceneOptions) -> None:
+    root.asset.add("texture", name="sky", type="skybox", builtin="gradient", rgb1=(0.3, 0.5, 0.7), rgb2=(0, 0, 0), width=512, height=3072)
+    root.asset.add(
+        "texture", name="floor", type="2d", builtin="checker", rgb1=(0.2, 0.3, 0.4), rgb2=(0.1, 0.2, 0.3), width=512, height=512, mark="cross", markrgb=(0.8, 0.8, 0.8)
+    )
+    root.asset.add("material", name="floor", texture="floor", texrepeat=(5, 5), texuniform=True, reflectance=0.1)
+    root.asset.add("material", name="foam", rgba=(0.93, 0.86, 0.55, 1.0))
+    root.asset.add("material", name="sample", rgba=(0.95, 0.55, 0.25, 1.0))
+    root.asset.add("material", name="kerf", rgba=(0.75, 0.65, 0.35, 1.0))
+    root.asset.add("material", name="metal", rgba=(0.45, 0.47, 0.5, 1.0), specular=0.5, shininess=0.5)
+    root.asset.add("material", name="wood", rgba=(0.55, 0.4, 0.28, 1.0))
+    visual_global = getattr(root.visual, "global")  # `global` is a Python keyword
+    visual_global.offwidth = scene.render_width
+    visual_global.offheight = scene.render_height
+    root.visual.quality.shadowsize = 4096
+    root.visual.headlight.ambient = (0.25, 0.25, 0.25)
+    root.visual.headlight.diffuse = (0.4, 0.4, 0.4)
+    root.visual.map.znear = 0.005
+    root.statistic.center = (0.0, 0.05, 0.3)
+    root.statistic.extent = 0.9
+
+
+def _add_environment(root: mjcf.RootElement, layout: TaskLayout, scene: SceneOptions) -> None:
+    """Floor, bench, actuation pack, clamp post: static, default contact parameters."""
+    px, py, pz = layout.pack_size
+    bench_top = -pz
+    floor_z = bench_top - scene.bench_height
+    world = root.worldbody
+    world.add("geom", name="floor", type="plane", size=(0, 0, 0.05), pos=(0, 0, floor_z), material="floor")
+    world.add("light", name="key", pos=(0.3, -0.6, 1.6), dir=(-0.2, 0.4, -1.0), directional=True, castshadow=True, diffuse=(0.7, 0.7, 0.7))
+    world.add("light", name="fill", pos=(-0.6, -0.4, 1.0), dir=(0.5, 0.4, -0.6), castshadow=False, diffuse=(0.3, 0.3, 0.3))
+
+    # Bench top under the pack and the clamp, reaching past the plate; four legs.
+    plate_y1 = layout.plate.corner_y + layout.plate.size[1]
+    lo = np.array([-max(0.4, px / 2 + 0.1), -py / 2 - 0.1, bench_top - 0.03])
+    hi = np.array([max(0.4, px / 2 + 0.1), max(py / 2, plate_y1) + 0.1, bench_top])
+    bench = world.add("body", name="bench")
+    _box(bench, "bench_top", tuple(lo), tuple(hi), np.zeros(3), material="wood")
+    for i, (x, y) in enumerate(((lo[0] + 0.03, lo[1] + 0.03), (lo[0] + 0.03, hi[1] - 0.03), (hi[0] - 0.03, lo[1] + 0.03), (hi[0] - 0.03, hi[1] - 0.03))):
+        _box(bench, f"bench_leg_{i}", (x - 0.02, y - 0.02, floor_z), (x + 0.02, y + 0.02, lo[2]), np.zeros(3), material="wood")
+    pack = world.add("body", name="pack")
+    pack.add("geom", name="pack", type="box", size=(px / 2, py / 2, pz / 2), pos=(0, 0, -pz / 2), material="metal")
+    for arm in ARMS:
+        mount = layout.mount(arm)
+        pack.add("geom", name=f"{arm}_flange", type="cylinder", size=(0.03, 0.002), pos=(mount.position[0], mount.position[1], -0.002), rgba=(0.2, 0.2, 0.22, 1))
+
+    # Clamp: a post from the bench to the plate's far strip, a lower and an upper jaw bar.
+    plate = layout.plate
+    ext = _plate_extents(layout)
+    bottom = plate.top_z - plate.thickness
+    clamp = world.add("body", name="clamp")
+    post_half = np.array([min(0.02, layout.clamp_length / 2), 0.015])
+    post_x = ext["x0"] + layout.clamp_length / 2
+    post_y = max((ext["y0"] + ext["y1"]) / 2, py / 2 + post_half[1] + 0.01)
+    post_y = min(post_y, ext["y1"] - post_half[1])
+    bar = 0.008
+    clamp.add(
+        "geom",
+        name="clamp_post",
+        type="box",
+        size=(post_half[0], post_half[1], (bottom - bar - bench_top) / 2),
+        pos=(post_x, post_y, (bottom - bar + bench_top) / 2),
+        material="metal",
+    )
+    origin = np.zeros(3)
+    _box(clamp, "clamp_lower", (ext["x0"], ext["y0"], bottom - bar), (ext["x0"] + layout.clamp_length, ext["y1"], bottom), origin, material="metal")
+    _box(clamp, "clamp_upper", (ext["x0"], ext["y0"], plate.top_z), (ext["x0"] + layout.clamp_length, ext["y1"], plate.top_z + bar), origin, material="metal")
+
+
+def _add_plate(root: mjcf.RootElement, layout: TaskLayout, scene: SceneOptions, timestep: float) -> None:
+    """Static plate (two boxes around the sample and kerf), kerf cells, welded sample."""
+    plate = layout.plate
+    ext = _plate_extents(layout)
+    top, bottom = plate.top_z, plate.top_z - plate.thickness
+    foam = dict(
+        solref=plate.contact_solref,
+        solimp=plate.contact_solimp,
+        friction=(scene.foam_friction, 0.005, 0.0001),
+        priority=FOAM_PRIORITY,
+    )
+    origin = plate.centre
+    body = root.worldbody.add("body", name=PLATE_BODY, pos=tuple(origin))
+    _box(body, "plate_main", (ext["x0"], ext["y0"], bottom), (ext["xk"], ext["y1"], top), origin, material="foam", **foam)
+    _box(body, "plate_side", (ext["xk"], ext["yk"], bottom), (ext["x1"], ext["y1"], top), origin, material="foam", **foam)
+    for i, cell in enumerate(kerf_cells(layout, scene.kerf_cell_length)):
+        body.add(
+            "geom",
+            name=f"{KERF_PREFIX}{i:03d}",
+            type="box",
+            size=(cell.length / 2, plate.kerf_width / 2, plate.thickness / 2),
+            pos=tuple(np.asarray(cell.centre) - origin),
+            quat=_yaw_quat(cell.yaw),
+            material="kerf",
+            **foam,
+        )
+    for name, p in zip(("kerf_start", "kerf_corner", "kerf_end"), plate.kerf_polyline()):
+        body.add("site", name=name, pos=tuple(p - origin), size=(0.002,), rgba=(1, 0, 0, 0.6))
+
+    # The sample: nominal corner rectangle, pulled back from the kerf by sample_gap on its
+    # two inner sides (its outer sides stay flush with the plate edges).
+    g = scene.sample_gap
+    lo = np.array([plate.corner_x - plate.sample_x + g, plate.corner_y, bottom])
+    hi = np.array([plate.corner_x, plate.corner_y + plate.sample_y - g, top])
+    centre = (lo + hi) / 2
+    sample = root.worldbody.add("body", name=SAMPLE_BODY, pos=tuple(centre))
+    sample.add("freejoint", name=SAMPLE_BODY)
+    sample.add("geom", name=SAMPLE_BODY, type="box", size=tuple((hi - lo) / 2), density=plate.density, material="sample", **foam)
+    sample.add("site", name="sample_centre", size=(0.002,), rgba=(0, 0, 1, 0.6))
+    # Anchor at the sample's centre (given in the plate's frame): a weld anchored far away
+    # lets a light body swing about the anchor. Stiff (5 timesteps): it is glue, not foam.
+    root.equality.add(
+        "weld",
+        name=SAMPLE_WELD,
+        body1=SAMPLE_BODY,
+        body2=PLATE_BODY,
+        anchor=tuple(centre - origin),
+        solref=(5 * timestep, 1.0),
+    )
+
+
+def _add_cameras(root: mjcf.RootElement, layout: TaskLayout) -> None:
+    plate = layout.plate
+    kerf = plate.kerf_polyline()
+    kerf_centre = kerf.mean(axis=0) - np.array([0.0, 0.0, plate.thickness / 2])
+    arms_mid = (np.asarray(layout.left.position) + np.asarray(layout.right.position)) / 2
+    overview_target = arms_mid + np.array([0.0, 0.05, 0.30])
+    overview_pos = overview_target + np.array([0.35, -1.05, 0.30])
+    root.worldbody.add("camera", name="overview", pos=tuple(overview_pos), xyaxes=look_at(overview_pos, overview_target), fovy=45)
+    # From below and in front: the grinder cuts from under the plate.
+    close_pos = kerf_centre + np.array([0.06, -0.20, -0.09])
+    root.worldbody.add("camera", name="cut_closeup", pos=tuple(close_pos), xyaxes=look_at(close_pos, kerf_centre), fovy=40)
+
+
+def _default_arm_builder() -> ArmBuilder:
+    from .arm import build_arm  # the lead's arm builder; imported late so tools/scene stand alone
+
+    return build_arm
+
+
+def _attach_tool(
+    root: mjcf.RootElement,
+    arm_model: mjcf.RootElement,
+    tool: str,
+    geometry: ArmGeometry,
+    layout: TaskLayout,
+    options: ModelOptions,
+    scene: SceneOptions,
+) -> None:
+    """Attach ``tool`` at the arm's ``tool_mount``; the cutter never collides with its own arm."""
+    plate = layout.plate
+    tool_model = tools_mod.build_tool(
+        tool, model_geometry(geometry, options), options, scene.tools, plate.kerf_width, plate.contact_solref, plate.contact_solimp
+    )
+    if tool_model is None:
+        return
+    tool_mount = arm_model.find("site", "tool_mount")
+    if tool_mount is None:
+        raise ValueError(f"arm model {arm_model.model!r} has no 'tool_mount' site to attach the {tool} to")
+    tool_mount.attach(tool_model)
+    if tool == tools_mod.GRINDER:
+        spindle = tool_model.find("body", tools_mod.SPINDLE_BODY)
+        for body in arm_model.find_all("body", exclude_attachments=True):
+            root.contact.add("exclude", body1=spindle, body2=body)
+
+
+def _attach_arm(
+    root: mjcf.RootElement,
+    arm: str,
+    geometry: ArmGeometry,
+    layout: TaskLayout,
+    options: ModelOptions,
+    scene: SceneOptions,
+    arm_builder: ArmBuilder,
+) -> mjcf.RootElement:
+    mount = layout.mount(arm)
+    arm_model = arm_builder(geometry, options, arm, mount.tool)
+    site = root.worldbody.add("site", name=f"{arm}_mount", pos=mount.position, size=(0.004,), rgba=(0, 1, 0, 0.5), group=5)
+    site.attach(arm_model)
+    _attach_tool(root, arm_model, mount.tool, geometry, layout, options, scene)
+    return arm_model
+
+
+def build_scene(
+    geometry: ArmGeometry,
+    layout: TaskLayout,
+    options: ModelOptions,
+    scene: SceneOptions | None = None,
+    *,
+    arm_builder: ArmBuilder | None = None,
+) -> mjcf.RootElement:
+    """The whole dual-arm scene as an MJCF tree (pure: no simulation state).
+
+    ``arm_builder`` defaults to ``model.arm.build_arm``; tests pass a kinematic stand-in.
+    """
+    scene = SceneOptions() if scene is None else scene
+    plate = layout.plate
+    if scene.tools.cutter_length <= plate.thickness + plate.cut_overtravel:
+        raise ConfigError(
+            "tools.cutter_length",
+            f"must exceed plate thickness + cut_overtravel = {plate.thickness + plate.cut_overtravel:g} m "
+            f"so the housing stays below the plate (got {scene.tools.cutter_length:g})",
+        )
+    builder = _default_arm_builder() if arm_builder is None else arm_builder
+    root = mjcf.RootElement(model=SCENE_MODEL)
+    root.compiler.autolimits = True
+    root.option.timestep = options.timestep
+    root.option.integrator = options.integrator
+    root.option.cone = "elliptic"
+    root.option.impratio = 10
+    _add_assets_and_visuals(root, layout, scene)
+    _add_environment(root, layout, scene)
+    _add_plate(root, layout, scene, options.timestep)
+    _add_cameras(root, layout)
+    for arm in ARMS:
+        _attach_arm(root, arm, geometry, layout, options, scene, builder)
+    return root
+
+
+def build_single_arm(
+    geometry: ArmGeometry,
+    options: ModelOptions,
+    tool: str = "none",
+    *,
+    name: str = "arm",
+    scene: SceneOptions | None = None,
+    arm_builder: ArmBuilder | None = None,
+) -> mjcf.RootElement:
+    """One arm on a floor, base at the origin, with an optional tool (validation model)."""
+    scene = SceneOptions() if scene is None else scene
+    builder = _default_arm_builder() if arm_builder is None else arm_builder
+    root = mjcf.RootElement(model=f"single_{name}")
+    root.compiler.autolimits = True
+    root.option.timestep = options.timestep
+    root.option.integrator = options.integrator
+    root.option.cone = "elliptic"
+    root.option.impratio = 10
+    layout = TaskLayout()
+    _add_assets_and_visuals(root, layout, scene)
+    root.worldbody.add("geom", name="floor", type="plane", size=(0, 0, 0.05), pos=(0, 0, -0.01), material="floor")
+    root.worldbody.add("light", name="key", pos=(0.3, -0.6, 1.6), dir=(-0.2, 0.4, -1.0), directional=True, castshadow=True, diffuse=(0.7, 0.7, 0.7))
+    view = np.array([0.0, 0.0, 0.3])
+    pos = view + np.array([0.0, -1.0, 0.2])
+    root.worldbody.add("camera", name="side", pos=tuple(pos), xyaxes=look_at(pos, view), fovy=45)
+    arm_model = builder(geometry, options, name, tool)
+    root.worldbody.add("site", name=f"{name}_mount", size=(0.004,), group=5).attach(arm_model)
+    _attach_tool(root, arm_model, tool, geometry, layout, options, scene)
+    return root

@@ -1,0 +1,306 @@
+"""End effectors: the grinder (left arm) and the cable-closed two-jaw gripper (right arm).
+
+Pure PyMJCF builders. Each returns a model whose worldbody origin is the arm's tip frame
+(the last disk centre, z along the arm); the scene attaches it at ``<arm>/tool_mount``.
+The tool centre point lies on the tool's z axis at ``geometry.tools.length(tool)``,
+which is where the arm builder puts its ``<arm>/tcp`` site, so planner and model agree.
+
+Grinder: a housing welded to the last disk and a spindle body on a hinge about the tool
+z axis, driven by a velocity actuator (the spindle motor sits in the pack and drives a
+flexible shaft, so only a small mass rides on the arm). The cutting geom ``cutter`` is a
+cylinder of the kerf width whose tip face centre is the TCP. It is frictionless
+(condim 1; a spinning cutter's friction is not what we model) and carries a thin
+detection shell (``gap``; MuJoCo ≥ 3.9 detects contacts at dist < margin + gap and
+applies force only at dist < margin = 0): contacts inside the shell are reported to the
+kerf cutter but exert no force, so cells go before the cutter presses on them.
+
+Gripper: a palm and two jaws on slide joints along the tool x axis (q = 0 open, q > 0
+closing). One cable closes both jaws through a fixed tendon
+``cable = −(q_a + q_b)`` (0 when open, −2·travel fully closed), so a jaw that meets the
+object first stops while the other keeps closing: a self-centring differential like a
+cable looped over both jaws. Springs in the slide joints open the jaws; the cable's
+actuator is a tension-only position loop (force range [−F, 0]) like the arm cables.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from dm_control import mjcf
+
+from ..configio import ConfigError, require_positive, require_range
+from ..geometry import ArmGeometry
+from .options import ModelOptions
+
+GRINDER = "grinder"
+GRIPPER = "gripper"
+SPINDLE_JOINT = "spindle"  # hinge of the grinder spindle, and its velocity actuator's name
+CUTTER_GEOM = "cutter"
+SPINDLE_BODY = "spindle"
+GRIPPER_CABLE = "cable"  # fixed tendon closing the jaws, and its actuator's name
+JAW_JOINTS = ("jaw_a", "jaw_b")
+PAD_GEOMS = ("pad_a", "pad_b")
+
+# Collision priority: the cutter's (frictionless) parameters win over the foam's, the
+# foam's (soft) ones over everything else it touches.
+CUTTER_PRIORITY = 2
+FOAM_PRIORITY = 1
+
+
+@dataclass(frozen=True)
+class ToolOptions:
+    """Tool details the paper does not give (*assumed*; all SI units)."""
+
+    housing_radius: float = 0.015  # grinder housing radius (inside the distal disk)
+    cutter_length: float = 0.020  # cutting cylinder length; must exceed plate thickness + overtravel
+    spindle_speed: float = 1000.0  # rad/s, nominal command (~9500 rpm)
+    spindle_max_speed: float = 2000.0  # rad/s, actuator ctrl range upper end
+    spindle_kv: float = 1.0e-3  # N·m·s/rad, velocity-loop gain of the spindle motor
+    spindle_armature: float = 1.0e-5  # kg·m², reflected rotor inertia (also keeps the loop stable)
+    cutter_shell: float = 0.001  # m, force-free detection shell around the cutter (geom gap)
+    gripper_open_gap: float = 0.030  # pad-to-pad gap with the jaws open
+    gripper_jaw_travel: float = 0.0125  # per jaw, closing
+    gripper_pad_length: float = 0.020  # pad extent along tool z (centred on the TCP)
+    gripper_pad_width: float = 0.016  # pad extent along tool y
+    gripper_spring: float = 20.0  # N/m, opening spring per jaw
+    gripper_damping: float = 2.0  # N·s/m per jaw
+    gripper_kp: float = 400.0  # N/m, cable position-loop gain
+    gripper_max_force: float = 2.0  # N, largest cable tension (foam sample < 1 g)
+    pad_friction: float = 1.0  # sliding friction of the jaw pads
+
+    def __post_init__(self) -> None:
+        require_range("housing_radius", self.housing_radius, 0.0, 0.1)
+        require_range("cutter_length", self.cutter_length, 0.0, 0.5)
+        require_range("spindle_speed", self.spindle_speed, 0.0, self.spindle_max_speed, low_inclusive=True)
+        require_range("spindle_max_speed", self.spindle_max_speed, 0.0, 1.0e5)
+        require_positive("spindle_kv", self.spindle_kv)
+        require_range("spindle_armature", self.spindle_armature, 0.0, 1.0, low_inclusive=True)
+        require_range("cutter_shell", self.cutter_shell, 0.0, 0.01, low_inclusive=True)
+        require_range("gripper_open_gap", self.gripper_open_gap, 0.0, 0.3)
+        require_range("gripper_jaw_travel", self.gripper_jaw_travel, 0.0, self.gripper_open_gap / 2, high_inclusive=False)
+        require_range("gripper_pad_length", self.gripper_pad_length, 0.0, 0.2)
+        require_range("gripper_pad_width", self.gripper_pad_width, 0.0, 0.2)
+        require_range("gripper_spring", self.gripper_spring, 0.0, 1.0e5, low_inclusive=True)
+        require_range("gripper_damping", self.gripper_damping, 0.0, 1.0e4, low_inclusive=True)
+        require_positive("gripper_kp", self.gripper_kp)
+        require_positive("gripper_max_force", self.gripper_max_force)
+        require_range("pad_friction", self.pad_friction, 0.0, 10.0)
+
+    @property
+    def gripper_closed_gap(self) -> float:
+        """Smallest pad-to-pad gap (both jaws at full travel)."""
+        return self.gripper_open_gap - 2 * self.gripper_jaw_travel
+
+    def gripper_cable_for_gap(self, gap: float) -> float:
+        """Cable command (tendon length) that closes the pads to ``gap`` (clipped to travel)."""
+        gap = min(max(gap, self.gripper_closed_gap), self.gripper_open_gap)
+        return gap - self.gripper_open_gap
+
+
+def _mass_geom(body: mjcf.Element, **kwargs) -> mjcf.Element:
+    return body.add("geom", **kwargs)
+
+
+def build_grinder(
+    geometry: ArmGeometry,
+    options: ModelOptions,
+    tools: ToolOptions,
+    cutter_diameter: float,
+    contact_solref: tuple[float, float],
+    contact_solimp: tuple[float, float, float],
+) -> mjcf.RootElement:
+    """The grinder: housing + spinning cutter whose tip face centre is the grinder TCP.
+
+    ``cutter_diameter`` is the kerf width; the cutter takes the foam's contact softness
+    (``contact_*``) so its contacts behave like the foam's.
+    """
+    length = geometry.tools.grinder_length
+    half_disk = geometry.disk_thickness / 2
+    require_positive("cutter_diameter", cutter_diameter)
+    if tools.cutter_length >= length - half_disk - 0.004:
+        raise ConfigError(
+            "tools.cutter_length",
+            f"must be < grinder_length − disk_thickness/2 − 4 mm = {length - half_disk - 0.004:g} m "
+            f"to leave room for the housing (got {tools.cutter_length:g})",
+        )
+    if tools.housing_radius >= geometry.sections[-1].disk_diameter / 2 + 0.01:
+        raise ConfigError("tools.housing_radius", "must not exceed the distal disk radius by more than 10 mm")
+    radius = cutter_diameter / 2
+    cutter_base = length - tools.cutter_length
+    housing_top = cutter_base - 0.003  # a short bare shaft between housing and cutter
+    housing_mass = 0.85 * options.grinder_mass
+    spindle_mass = options.grinder_mass - housing_mass
+    shaft_radius = min(0.002, 0.6 * radius)
+
+    root = mjcf.RootElement(model=GRINDER)
+    root.default.geom.rgba = (0.55, 0.57, 0.6, 1.0)
+    housing = root.worldbody.add("body", name="housing")
+    _mass_geom(
+        housing,
+        name="housing",
+        type="cylinder",
+        size=(tools.housing_radius, (housing_top - half_disk) / 2),
+        pos=(0, 0, (housing_top + half_disk) / 2),
+        mass=housing_mass,
+        rgba=(0.2, 0.22, 0.25, 1.0),
+    )
+    spindle = housing.add("body", name=SPINDLE_BODY, pos=(0, 0, housing_top))
+    spindle.add(
+        "joint",
+        name=SPINDLE_JOINT,
+        type="hinge",
+        axis=(0, 0, 1),
+        armature=tools.spindle_armature,
+        damping=0.0,
+    )
+    shaft_mass = 0.2 * spindle_mass
+    spindle.add(
+        "geom",
+        name="shaft",
+        type="cylinder",
+        size=(shaft_radius, (cutter_base - housing_top) / 2),
+        pos=(0, 0, (cutter_base - housing_top) / 2),
+        mass=shaft_mass,
+        contype=0,
+        conaffinity=0,
+    )
+    spindle.add(
+        "geom",
+        name=CUTTER_GEOM,
+        type="cylinder",
+        size=(radius, tools.cutter_length / 2),
+        pos=(0, 0, length - housing_top - tools.cutter_length / 2),
+        mass=spindle_mass - shaft_mass,
+        condim=1,
+        priority=CUTTER_PRIORITY,
+        solref=contact_solref,
+        solimp=contact_solimp,
+        margin=0.0,
+        gap=tools.cutter_shell,
+        rgba=(0.85, 0.75, 0.3, 1.0),
+    )
+    # A stripe so the spin is visible in videos; no collision, no mass.
+    spindle.add(
+        "geom",
+        name="stripe",
+        type="box",
+        size=(radius * 0.95, 0.0006, tools.cutter_length / 2 * 0.98),
+        pos=(0, 0, length - housing_top - tools.cutter_length / 2),
+        contype=0,
+        conaffinity=0,
+        mass=0,
+        rgba=(0.3, 0.2, 0.1, 1.0),
+        group=1,
+    )
+    spindle.add("site", name="tip", pos=(0, 0, length - housing_top), size=(0.0015,), rgba=(1, 0, 0, 1))
+    root.actuator.add(
+        "velocity",
+        name=SPINDLE_JOINT,
+        joint=spindle.find("joint", SPINDLE_JOINT),
+        kv=tools.spindle_kv,
+        ctrlrange=(0.0, tools.spindle_max_speed),
+        ctrllimited=True,
+    )
+    return root
+
+
+def build_gripper(geometry: ArmGeometry, options: ModelOptions, tools: ToolOptions) -> mjcf.RootElement:
+    """The two-jaw gripper: pads centred on the TCP, jaws closing along the tool x axis."""
+    length = geometry.tools.gripper_length
+    half_disk = geometry.disk_thickness / 2
+    pad_half = tools.gripper_pad_length / 2
+    palm_half_z = 0.008
+    palm_top = half_disk + 2 * palm_half_z
+    if length - pad_half <= palm_top + 0.004:
+        raise ConfigError(
+            "tools.gripper_pad_length",
+            f"pads would reach into the palm: need gripper_length − pad_length/2 > {palm_top + 0.004:g} m",
+        )
+    finger_t = 0.004  # finger plate thickness along x
+    pad_t = 0.003
+    finger_top = length + pad_half
+    finger_half_z = (finger_top - palm_top) / 2
+    finger_x = tools.gripper_open_gap / 2 + pad_t + finger_t / 2  # finger centre, open
+    palm_half_x = finger_x + finger_t / 2 + 0.002
+    palm_half_y = tools.gripper_pad_width / 2 + 0.002
+    palm_mass = 0.6 * options.gripper_mass
+    jaw_mass = (options.gripper_mass - palm_mass) / 2
+
+    root = mjcf.RootElement(model=GRIPPER)
+    palm = root.worldbody.add("body", name="palm")
+    palm.add(
+        "geom",
+        name="palm",
+        type="box",
+        size=(palm_half_x, palm_half_y, palm_half_z),
+        pos=(0, 0, half_disk + palm_half_z),
+        mass=palm_mass,
+        rgba=(0.2, 0.22, 0.25, 1.0),
+    )
+    for side, sign in (("a", 1.0), ("b", -1.0)):
+        jaw = palm.add("body", name=f"jaw_{side}", pos=(sign * finger_x, 0, 0))
+        jaw.add(
+            "joint",
+            name=f"jaw_{side}",
+            type="slide",
+            axis=(-sign, 0, 0),  # positive = closing
+            range=(0.0, tools.gripper_jaw_travel),
+            limited=True,
+            stiffness=tools.gripper_spring,
+            springref=0.0,
+            damping=tools.gripper_damping,
+            armature=1e-4,
+        )
+        jaw.add(
+            "geom",
+            name=f"finger_{side}",
+            type="box",
+            size=(finger_t / 2, tools.gripper_pad_width / 2, finger_half_z),
+            pos=(0, 0, palm_top + finger_half_z),
+            mass=0.8 * jaw_mass,
+            rgba=(0.55, 0.57, 0.6, 1.0),
+        )
+        jaw.add(
+            "geom",
+            name=f"pad_{side}",
+            type="box",
+            size=(pad_t / 2, tools.gripper_pad_width / 2, pad_half),
+            pos=(-sign * (finger_t / 2 + pad_t / 2), 0, length),
+            mass=0.2 * jaw_mass,
+            friction=(tools.pad_friction, 0.005, 0.0001),
+            rgba=(0.15, 0.15, 0.15, 1.0),
+        )
+    palm.add("site", name="tip", pos=(0, 0, length), size=(0.0015,), rgba=(1, 0, 0, 1))
+    cable = root.tendon.add("fixed", name=GRIPPER_CABLE)
+    for name in JAW_JOINTS:
+        cable.add("joint", joint=root.find("joint", name), coef=-1.0)
+    root.actuator.add(
+        "position",
+        name=GRIPPER_CABLE,
+        tendon=cable,
+        kp=tools.gripper_kp,
+        ctrlrange=(-2 * tools.gripper_jaw_travel, 0.0),
+        ctrllimited=True,
+        forcerange=(-tools.gripper_max_force, 0.0),
+        forcelimited=True,
+    )
+    return root
+
+
+def build_tool(
+    tool: str,
+    geometry: ArmGeometry,
+    options: ModelOptions,
+    tools: ToolOptions,
+    cutter_diameter: float,
+    contact_solref: tuple[float, float],
+    contact_solimp: tuple[float, float, float],
+) -> mjcf.RootElement | None:
+    """The named tool's model (``None`` for ``"none"``)."""
+    if tool == GRINDER:
+        return build_grinder(geometry, options, tools, cutter_diameter, contact_solref, contact_solimp)
+    if tool == GRIPPER:
+        return build_gripper(geometry, options, tools)
+    if tool == "none":
+        return None
+    raise ConfigError("tool", f"must be one of 'grinder', 'gripper', 'none' (got {tool!r})")

@@ -1,0 +1,39 @@
+"""Test-only helpers for the model tests (not part of the package)."""
+
+from __future__ import annotations
+
+from dm_control import mjcf
+
+from continuum_sim.geometry import ArmGeometry
+from continuum_sim.model.options import ModelOptions, model_geometry
+
+
+def rigid_arm(geometry: ArmGeometry, options: ModelOptions, name: str, tool: str) -> mjcf.RootElement:
+    """A straight, jointless stand-in with the arm builder's interface (``base``,
+    ``tool_mount`` at the tip, ``tcp``): a kinematic carrier for tools in tests."""
+    geometry = model_geometry(geometry, options)
+    root = mjcf.RootElement(model=name)
+    base = root.worldbody.add("body", name="base")
+    radius = geometry.sections[-1].disk_diameter / 2
+    base.add("geom", name="rod", type="cylinder", size=(0.005, geometry.length / 2), pos=(0, 0, geometry.length / 2), mass=0.1)
+    tip = base.add("body", name="tip", pos=(0, 0, geometry.length))
+    tip.add("geom", name="disk", type="cylinder", size=(radius, geometry.disk_thickness / 2), mass=0.01)
+    tip.add("site", name="tool_mount")
+    tip.add("site", name="tcp", pos=(0, 0, geometry.tools.length(tool)))
+    return root
+
+
+def carry_with_mocap(root: mjcf.RootElement, arm: str, anchor_height: float) -> mjcf.Element:
+    """Give the ``arm`` stand-in a free joint welded to a new mocap body; returns the mocap.
+
+    A mocap body itself has no velocity, so friction cannot drag things along with it;
+    welding a free body to it gives the tool real velocities (what a grasp needs).
+    """
+    frame = root.find("attachment_frame", arm)
+    frame.add("freejoint")
+    target = root.worldbody.add("body", name=f"{arm}_target", mocap=True, pos=frame.pos)
+    # Anchored near the tool: a weld anchored far from the load lets it swing.
+    root.equality.add(
+        "weld", body1=target, body2=root.find("body", f"{arm}/base"), anchor=(0, 0, anchor_height), solref=(0.004, 1.0)
+    )
+    return target
