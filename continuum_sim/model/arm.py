@@ -123,7 +123,9 @@ def build_arm(geometry: ArmGeometry, options: ModelOptions, name: str, tool: str
         for c in range(model_geom.n_cables):
             k, j = divmod(c, 3)
             cable = f"cable_{k}_{j}"
-            tendon = root.tendon.add("spatial", name=cable, width=0.0008, rgba=(0.95, 0.55, 0.1, 1.0))
+            tendon = root.tendon.add(
+                "spatial", name=cable, width=0.0008, rgba=(0.95, 0.55, 0.1, 1.0), damping=options.cable_damping
+            )
             for disk in range(0, int(last_disk[k]) + 1):
                 tendon.add("site", site=f"hole_{disk}_{c}")
             root.actuator.add(
