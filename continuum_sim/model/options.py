@@ -22,11 +22,12 @@ class ModelOptions:
     joint: Literal["ball", "hinge_pair"] = "ball"
     segments_per_section: int = 0
     stiffness_scale: float = 1.0  # multiplies every flexure stiffness (the design sweep knob)
-    joint_damping: float = 0.02  # N·m·s/rad per joint, per unit physical segment count (scaled like stiffness)
+    joint_damping: float = 0.2  # N·m·s/rad per physical joint (hinge + ball friction, *assumed*); scaled like stiffness
     joint_armature: float = 1e-5  # kg·m², numerical regulariser for light disks
     cable_max_force: float = 150.0  # N, Fmax of each tension-only cable actuator
     cable_kp: float = 3.0e4  # N/m, motor position-loop gain expressed at the cable
-    cable_kv: float = 60.0  # N·s/m, velocity damping of the motor loop at the cable
+    cable_kv: float = 0.0  # N·s/m, velocity gain of the motor loop at the cable (explicit, tension-only)
+    cable_damping: float = 200.0  # N·s/m, viscous damping along each cable (motor loop + guides; passive, implicit)
     grinder_mass: float = 0.08  # kg; the spindle motor sits in the pack (flexible shaft)
     gripper_mass: float = 0.06  # kg
     timestep: float = 0.001
@@ -49,6 +50,7 @@ class ModelOptions:
         require_positive("cable_max_force", self.cable_max_force)
         require_positive("cable_kp", self.cable_kp)
         require_range("cable_kv", self.cable_kv, 0.0, 1e6, low_inclusive=True)
+        require_range("cable_damping", self.cable_damping, 0.0, 1e6, low_inclusive=True)
         require_range("grinder_mass", self.grinder_mass, 0.0, 10.0)
         require_range("gripper_mass", self.gripper_mass, 0.0, 10.0)
         require_range("timestep", self.timestep, 0.0, 0.01)

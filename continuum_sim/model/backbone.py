@@ -1,0 +1,81 @@
+"""A chain of rigid nodes joined by elastic joints: the spine of the arm and of test rods.
+
+Node i sits ``pitch`` above node i−1 along the parent's z; its joint lies half-way
+between them (SPEC §2: ``Trans(p/2) · R · Trans(p/2)``), so a chain of n nodes of pitch
+L/n is exactly the discrete PCC model when bent uniformly. The same builder makes the
+continuum arm (disks) and the uniform rods compared with SoRoSim (capsule links).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+from ..configio import ConfigError
+
+JointKind = Literal["ball", "hinge_pair", "hinge_triple"]
+
+
+@dataclass(frozen=True)
+class LinkSpec:
+    """One node of a backbone and the elastic joint that carries it."""
+
+    pitch: float  # distance from the previous node along its z
+    radius: float  # geom radius
+    half_length: float  # geom half length along z
+    mass: float
+    bending_stiffness: float  # N·m/rad about x and y
+    twist_stiffness: float  # N·m/rad about z (hinge_triple only; a ball joint's spring is isotropic)
+    damping: float
+    armature: float = 0.0
+    shape: Literal["cylinder", "capsule"] = "cylinder"
+
+    def __post_init__(self) -> None:
+        for name in ("pitch", "radius", "half_length", "mass"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(name, f"must be > 0 (got {getattr(self, name)!r})")
+        for name in ("bending_stiffness", "twist_stiffness", "damping", "armature"):
+            if not getattr(self, name) >= 0:
+                raise ConfigError(name, f"must be >= 0 (got {getattr(self, name)!r})")
+
+
+def _add_joints(body, index: int, link: LinkSpec, kind: JointKind) -> None:
+    pos = (0.0, 0.0, -link.pitch / 2.0)
+    common = dict(pos=pos, damping=link.damping, armature=link.armature)
+    if kind == "ball":
+        body.add("joint", name=f"joint_{index}", type="ball", stiffness=link.bending_stiffness, **common)
+        return
+    axes = [("x", (1, 0, 0), link.bending_stiffness), ("y", (0, 1, 0), link.bending_stiffness)]
+    if kind == "hinge_triple":
+        axes.append(("z", (0, 0, 1), link.twist_stiffness))
+    elif kind != "hinge_pair":
+        raise ConfigError("joint", f"must be 'ball', 'hinge_pair' or 'hinge_triple' (got {kind!r})")
+    for suffix, axis, stiffness in axes:
+        body.add("joint", name=f"joint_{index}_{suffix}", type="hinge", axis=axis, stiffness=stiffness, **common)
+
+
+def build_backbone(parent, links: Sequence[LinkSpec], joint: JointKind, *, rgba=(0.8, 0.8, 0.82, 1.0), material=None, first_index: int = 1) -> list:
+    """Append a chain of bodies ``disk_<i>`` under ``parent``; returns the bodies in order."""
+    bodies = []
+    body = parent
+    for offset, link in enumerate(links):
+        index = first_index + offset
+        body = body.add("body", name=f"disk_{index}", pos=(0.0, 0.0, link.pitch))
+        _add_joints(body, index, link, joint)
+        geom_kwargs = dict(name=f"disk_{index}", mass=link.mass, rgba=rgba)
+        if material is not None:
+            geom_kwargs["material"] = material
+            geom_kwargs.pop("rgba")
+        if link.shape == "cylinder":
+            body.add("geom", type="cylinder", size=(link.radius, link.half_length), **geom_kwargs)
+        else:
+            body.add(
+                "geom",
+                type="capsule",
+                fromto=(0.0, 0.0, -link.half_length, 0.0, 0.0, link.half_length),
+                size=(link.radius,),
+                **geom_kwargs,
+            )
+        bodies.append(body)
+    return bodies

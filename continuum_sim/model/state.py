@@ -1,0 +1,71 @@
+"""Map between PCC configurations q and the generated model's joint coordinates."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..geometry import ArmGeometry
+from ..kinematics import to_bending
+
+
+def segment_rotation_vectors(geometry: ArmGeometry, q: ArrayLike) -> np.ndarray:
+    """(n_joints, 3) rotation vector of every joint of the uniformly bent sections."""
+    w = to_bending(np.asarray(q, dtype=float))
+    out = []
+    for k, section in enumerate(geometry.sections):
+        u, v = w[2 * k], w[2 * k + 1]
+        out.extend([np.array([-v, u, 0.0]) / section.n_segments] * section.n_segments)
+    return np.array(out)
+
+
+def ball_quaternions(geometry: ArmGeometry, q: ArrayLike) -> np.ndarray:
+    """(n_joints, 4) MuJoCo (w, x, y, z) quaternions of the ball joints at configuration q."""
+    rv = segment_rotation_vectors(geometry, q)
+    angle = np.linalg.norm(rv, axis=1)
+    half = angle / 2.0
+    scale = 0.5 * np.sinc(half / np.pi)  # sin(angle/2)/angle
+    return np.column_stack([np.cos(half), rv * scale[:, None]])
+
+
+def hinge_pair_angles(geometry: ArmGeometry, q: ArrayLike) -> np.ndarray:
+    """(n_joints, 2) angles (a, b) of Rx(a)Ry(b) pointing each disk's z like the PCC model.
+
+    A universal joint cannot reproduce the PCC rotation exactly (it adds a second-order
+    twist), but it points each disk's axis identically.
+    """
+    rv = segment_rotation_vectors(geometry, q)
+    beta = np.linalg.norm(rv, axis=1)
+    axis_dir = np.where(beta[:, None] > 0, rv / np.where(beta > 0, beta, 1.0)[:, None], 0.0)
+    # rotation about (-sin φ, cos φ, 0) by β sends e_z to (sin β cos φ, sin β sin φ, cos β)
+    cos_phi, sin_phi = axis_dir[:, 1], -axis_dir[:, 0]
+    ez = np.column_stack([np.sin(beta) * cos_phi, np.sin(beta) * sin_phi, np.cos(beta)])
+    b = np.arcsin(np.clip(ez[:, 0], -1.0, 1.0))
+    a = np.arctan2(-ez[:, 1], ez[:, 2])
+    return np.column_stack([a, b])
+
+
+def arm_qpos_addresses(model, arm: str, n_joints: int, joint: str) -> np.ndarray:
+    """qpos addresses of an arm's joints, in disk order (ball: 4 each, hinge_pair: 2 each)."""
+    import mujoco
+
+    addresses = []
+    for i in range(1, n_joints + 1):
+        if joint == "ball":
+            jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{arm}/joint_{i}")
+            addresses.extend(range(model.jnt_qposadr[jid], model.jnt_qposadr[jid] + 4))
+        else:
+            for suffix in ("x", "y"):
+                jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{arm}/joint_{i}_{suffix}")
+                addresses.append(model.jnt_qposadr[jid])
+        if min(addresses[-2:]) < 0:
+            raise KeyError(f"joint {arm}/joint_{i} not found")
+    return np.array(addresses)
+
+
+def set_arm_configuration(model, data, model_geometry: ArmGeometry, arm: str, q: ArrayLike, joint: str = "ball") -> None:
+    """Write the PCC configuration q of ``arm`` into ``data.qpos`` (call mj_forward after)."""
+    n = sum(s.n_segments for s in model_geometry.sections)
+    addresses = arm_qpos_addresses(model, arm, n, joint)
+    values = ball_quaternions(model_geometry, q) if joint == "ball" else hinge_pair_angles(model_geometry, q)
+    data.qpos[addresses] = values.ravel()

@@ -1,0 +1,1 @@
+"""The sample-removal scenario (SPEC §5, §7, §8): configuration, runner, metrics."""

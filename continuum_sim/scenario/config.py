@@ -1,0 +1,111 @@
+"""Scenario configuration: everything one run needs, validated, saved with every run.
+
+The shipped defaults live in ``continuum_sim/data/scenario.toml``; a user's TOML file
+overrides any subset of them (unknown keys are errors). Every numeric field can be
+addressed by a dotted path (``model.stiffness_scale``, ``arm.sections.0.hinge_width``),
+which is how sweeps vary a design.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from importlib import resources
+from typing import Any
+
+from ..configio import ConfigError, from_dict, load_toml, require_range, save_toml, to_dict
+from ..control import ControlConfig
+from ..geometry import ArmGeometry
+from ..layout import TaskLayout
+from ..model.options import ModelOptions
+
+
+def _scenario_model_options() -> ModelOptions:
+    # The scenario's default fidelity: 5 joints per section and a 2 ms step keep the
+    # run ≥ 10× real time; stiffness scales with the joint count (k = n·EI/L).
+    return ModelOptions(segments_per_section=5, timestep=0.002)
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    """How a run is simulated and recorded."""
+
+    seed: int = 0
+    record_hz: float = 50.0  # time-series sampling rate
+    video_fps: float = 25.0
+    video_width: int = 640
+    video_height: int = 480
+    cameras: tuple[str, ...] = ("overview", "closeup")
+
+    def __post_init__(self) -> None:
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ConfigError("seed", f"must be an integer >= 0 (got {self.seed!r})")
+        require_range("record_hz", self.record_hz, 1.0, 1000.0, low_inclusive=True)
+        require_range("video_fps", self.video_fps, 1.0, 120.0, low_inclusive=True)
+        for name in ("video_width", "video_height"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or not 16 <= value <= 4096:
+                raise ConfigError(name, f"must be an integer in [16, 4096] (got {value!r})")
+        if not self.cameras:
+            raise ConfigError("cameras", "must name at least one camera")
+
+
+@dataclass(frozen=True)
+class ScenarioConfig:
+    """One run of the sample-removal task."""
+
+    arm: ArmGeometry = field(default_factory=ArmGeometry)
+    layout: TaskLayout = field(default_factory=TaskLayout)
+    model: ModelOptions = field(default_factory=_scenario_model_options)
+    control: ControlConfig = field(default_factory=ControlConfig)
+    simulation: SimulationConfig = field(default_factory=SimulationConfig)
+
+    @classmethod
+    def default(cls) -> "ScenarioConfig":
+        """The shipped defaults (``continuum_sim/data/scenario.toml``)."""
+        text = resources.files("continuum_sim").joinpath("data/scenario.toml").read_text()
+        import tomllib
+
+        return from_dict(cls, tomllib.loads(text))
+
+    @classmethod
+    def from_toml(cls, path: str | os.PathLike[str]) -> "ScenarioConfig":
+        """A user file over the shipped defaults; errors name the file and the field."""
+        try:
+            return merged(cls.default(), load_toml(path))
+        except ConfigError as exc:
+            if exc.field.startswith(str(path)):
+                raise
+            raise exc.under(f"{path}: ") from None
+
+    def save_toml(self, path: str | os.PathLike[str]) -> None:
+        save_toml(self, path)
+
+
+def _merge(base: Any, override: Any) -> Any:
+    if isinstance(base, dict) and isinstance(override, dict):
+        out = dict(base)
+        for key, value in override.items():
+            out[key] = _merge(base[key], value) if key in base else value
+        return out
+    return override
+
+
+def merged(config: ScenarioConfig, overrides: dict[str, Any]) -> ScenarioConfig:
+    """``config`` with a nested dict of overrides applied (lists replace whole)."""
+    return from_dict(type(config), _merge(to_dict(config), overrides))
+
+
+DEFAULTS_HEADER = """\
+# Shipped defaults of the sample-removal scenario (continuum_sim.scenario.config).
+# Generated from the dataclass defaults by `continuum-sim build-model`; a test fails when stale.
+# Units: SI (m, kg, N, s, Pa); angles in degrees where the key ends in _deg.
+
+"""
+
+
+def default_scenario_toml() -> str:
+    """The text of the shipped defaults file, generated from the dataclass defaults."""
+    from ..configio import dumps_toml
+
+    return DEFAULTS_HEADER + dumps_toml(to_dict(ScenarioConfig()))

@@ -1,0 +1,74 @@
+"""Off-screen video recording and the metric helpers."""
+
+import numpy as np
+import pytest
+
+from continuum_sim.glbackend import choose_gl_backend
+from continuum_sim.scenario import metrics as met
+
+choose_gl_backend()
+import mujoco  # noqa: E402
+
+SCENE = """
+<mujoco>
+  <worldbody>
+    <light pos="0 0 2"/>
+    <camera name="a" pos="0 -1 0.3" xyaxes="1 0 0 0 0.3 1"/>
+    <camera name="b" pos="1 0 0.3" xyaxes="0 1 0 -0.3 0 1"/>
+    <body pos="0 0 0.5"><freejoint/><geom type="box" size=".05 .05 .05" rgba="1 0 0 1"/></body>
+    <geom type="plane" size="1 1 .1"/>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_video_recorder_writes_tiled_mp4_atomically(tmp_path):
+    import imageio.v2 as imageio
+
+    from continuum_sim.video import VideoRecorder
+
+    model = mujoco.MjModel.from_xml_string(SCENE)
+    data = mujoco.MjData(model)
+    path = tmp_path / "clip.mp4"
+    with VideoRecorder(model, path, ["a", "b"], width=160, height=120, fps=20) as video:
+        while data.time < 0.5:
+            mujoco.mj_step(model, data)
+            video.maybe_capture(data)
+            assert not path.exists()  # only the finished file appears under its name
+    assert video.frames == 11  # t = 0, 0.05, …, 0.5
+    reader = imageio.get_reader(path)
+    frames = [f for f in reader]
+    reader.close()
+    assert len(frames) == 11
+    assert frames[0].shape == (120, 320, 3)
+    assert frames[-1].std() > 5  # something was drawn
+    assert not list(tmp_path.glob(".*partial*"))
+
+
+def test_video_recorder_rejects_unknown_camera(tmp_path):
+    from continuum_sim.video import VideoRecorder
+
+    model = mujoco.MjModel.from_xml_string(SCENE)
+    with pytest.raises(ValueError, match="cameras: unknown camera 'nope'"):
+        VideoRecorder(model, tmp_path / "x.mp4", ["nope"])
+
+
+def test_polyline_distance_and_axis_angle():
+    line = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]])
+    pts = np.array([[0.5, 0.2], [1.3, 0.5], [2.0, 2.0], [-1.0, 0.0]])
+    np.testing.assert_allclose(met.polyline_distance(pts, line), [0.2, 0.3, np.sqrt(2), 1.0])
+    axes = np.array([[0.0, 0.0, 1.0], [np.sin(0.1), 0.0, np.cos(0.1)]])
+    np.testing.assert_allclose(met.axis_angle_deg(axes, np.array([0, 0, 2.0])), [0.0, np.degrees(0.1)], atol=1e-12)
+
+
+def test_backbone_distance_is_centre_gap_minus_radii():
+    a = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    b = np.array([[0.5, 0.0, 1.0], [3.0, 0.0, 0.0]])
+    assert met.min_backbone_distance(a, np.array([0.1, 0.1]), b, np.array([0.05, 0.05])) == pytest.approx(0.35)
+
+
+def test_error_stats():
+    stats = met.error_stats(np.array([0.001, 0.002, 0.002]))
+    assert stats["mean"] == pytest.approx(5 / 3) and stats["max"] == pytest.approx(2.0)
+    assert stats["rms"] == pytest.approx(np.sqrt(9 / 3))
+    assert met.error_stats(np.array([]))["mean"] is None
