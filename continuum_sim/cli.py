@@ -76,6 +76,21 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_build_model(args: argparse.Namespace) -> int:
+    from .model.export import export_models
+
+    if args.config is None:
+        paths = export_models(args.out)
+    else:
+        from .scenario.config import ScenarioConfig
+
+        config = ScenarioConfig.from_toml(args.config)
+        paths = export_models(args.out, config.arm, config.layout, config.model)
+    for path in paths:
+        print(f"wrote {path}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="continuum-sim", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -92,6 +107,11 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", default="runs/default", help="run folder (default: runs/default)")
     run.add_argument("--video", action="store_true", help="render an MP4 off-screen")
     run.set_defaults(func=_cmd_run)
+
+    build = sub.add_parser("build-model", help="regenerate the MJCF models (dual_arm.xml, arm.xml)")
+    build.add_argument("--out", default="models", help="output folder (default: models)")
+    build.add_argument("--config", help="scenario TOML whose arm/layout/model to build (default: package defaults)")
+    build.set_defaults(func=_cmd_build_model)
     return parser
 
 

@@ -2,10 +2,16 @@
 
 from __future__ import annotations
 
-from dm_control import mjcf
-
 from continuum_sim.geometry import ArmGeometry
+from continuum_sim.model.arm import arm_collision_bits
 from continuum_sim.model.options import ModelOptions, model_geometry
+from continuum_sim.model.scene import mjcf  # dm_control's, imported after the GL backend choice
+
+import mujoco  # noqa: E402
+
+
+def compile_root(root: mjcf.RootElement) -> mujoco.MjModel:
+    return mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
 
 
 def rigid_arm(geometry: ArmGeometry, options: ModelOptions, name: str, tool: str) -> mjcf.RootElement:
@@ -13,6 +19,7 @@ def rigid_arm(geometry: ArmGeometry, options: ModelOptions, name: str, tool: str
     ``tool_mount`` at the tip, ``tcp``): a kinematic carrier for tools in tests."""
     geometry = model_geometry(geometry, options)
     root = mjcf.RootElement(model=name)
+    root.default.geom.contype, root.default.geom.conaffinity = arm_collision_bits(name)
     base = root.worldbody.add("body", name="base")
     radius = geometry.sections[-1].disk_diameter / 2
     base.add("geom", name="rod", type="cylinder", size=(0.005, geometry.length / 2), pos=(0, 0, geometry.length / 2), mass=0.1)

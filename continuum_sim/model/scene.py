@@ -15,7 +15,7 @@ Names (after attachment): ``left/…`` grinder arm, ``right/…`` gripper arm, t
 actuators ``<arm>/cable_<section>_<c>``, sites ``<arm>/tcp``, spindle actuator
 ``left/grinder/spindle``, gripper cable tendon and actuator ``right/gripper/cable``,
 cutter geom ``left/grinder/cutter``, bodies ``plate`` and ``sample``, equality
-``sample_weld``, cameras ``overview`` and ``cut_closeup``.
+``sample_weld``, cameras ``overview`` and ``closeup``.
 """
 
 from __future__ import annotations
@@ -25,14 +25,20 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from dm_control import mjcf
 
-from ..configio import ConfigError, require_range
-from ..geometry import ArmGeometry
-from ..layout import TaskLayout
-from . import tools as tools_mod
-from .options import ModelOptions, model_geometry
-from .tools import FOAM_PRIORITY, ToolOptions
+from ..glbackend import choose_gl_backend
+
+choose_gl_backend()  # before dm_control/mujoco read MUJOCO_GL
+
+from dm_control import mjcf  # noqa: E402
+
+from ..configio import ConfigError, require_range  # noqa: E402
+from ..geometry import ArmGeometry  # noqa: E402
+from ..layout import TaskLayout  # noqa: E402
+from . import tools as tools_mod  # noqa: E402
+from .arm import apply_simulation_options, arm_collision_bits, build_arm  # noqa: E402
+from .options import ModelOptions, model_geometry  # noqa: E402
+from .tools import FOAM_PRIORITY, ToolOptions  # noqa: E402
 
 ArmBuilder = Callable[[ArmGeometry, ModelOptions, str, str], mjcf.RootElement]
 
@@ -42,7 +48,7 @@ PLATE_BODY = "plate"
 SAMPLE_BODY = "sample"
 SAMPLE_WELD = "sample_weld"
 KERF_PREFIX = "kerf_"
-CAMERAS = ("overview", "cut_closeup")
+CAMERAS = ("overview", "closeup")
 
 
 @dataclass(frozen=True)
@@ -60,7 +66,7 @@ class SceneOptions:
     def __post_init__(self) -> None:
         require_range("kerf_cell_length", self.kerf_cell_length, 0.0005, 0.1, low_inclusive=True)
         require_range("sample_gap", self.sample_gap, 0.0, 0.002, low_inclusive=True)
-        require_range("foam_friction", self.foam_friction, 0.0, 10.0)
+        require_range("foam_friction", self.foam_friction, 0.0, 10.0, low_inclusive=True)
         require_range("bench_height", self.bench_height, 0.05, 3.0, low_inclusive=True)
         for name in ("render_width", "render_height"):
             value = getattr(self, name)
@@ -156,7 +162,7 @@ def _add_assets_and_visuals(root: mjcf.RootElement, layout: TaskLayout, scene: S
     root.asset.add("material", name="floor", texture="floor", texrepeat=(5, 5), texuniform=True, reflectance=0.1)
     root.asset.add("material", name="foam", rgba=(0.93, 0.86, 0.55, 1.0))
     root.asset.add("material", name="sample", rgba=(0.95, 0.55, 0.25, 1.0))
-    root.asset.add("material", name="kerf", rgba=(0.75, 0.65, 0.35, 1.0))
+    root.asset.add("material", name="kerf", rgba=(0.62, 0.47, 0.27, 1.0))
     root.asset.add("material", name="metal", rgba=(0.45, 0.47, 0.5, 1.0), specular=0.5, shininess=0.5)
     root.asset.add("material", name="wood", rgba=(0.55, 0.4, 0.28, 1.0))
     visual_global = getattr(root.visual, "global")  # `global` is a Python keyword
@@ -273,22 +279,17 @@ def _add_cameras(root: mjcf.RootElement, layout: TaskLayout) -> None:
     kerf = plate.kerf_polyline()
     kerf_centre = kerf.mean(axis=0) - np.array([0.0, 0.0, plate.thickness / 2])
     arms_mid = (np.asarray(layout.left.position) + np.asarray(layout.right.position)) / 2
-    overview_target = arms_mid + np.array([0.0, 0.05, 0.30])
-    overview_pos = overview_target + np.array([0.35, -1.05, 0.30])
+    overview_target = arms_mid + np.array([0.0, 0.06, 0.28])
+    overview_pos = overview_target + np.array([0.40, -0.78, 0.22])
     root.worldbody.add("camera", name="overview", pos=tuple(overview_pos), xyaxes=look_at(overview_pos, overview_target), fovy=45)
-    # From below and in front: the grinder cuts from under the plate.
-    close_pos = kerf_centre + np.array([0.06, -0.20, -0.09])
-    root.worldbody.add("camera", name="cut_closeup", pos=tuple(close_pos), xyaxes=look_at(close_pos, kerf_centre), fovy=40)
-
-
-def _default_arm_builder() -> ArmBuilder:
-    from .arm import build_arm  # the lead's arm builder; imported late so tools/scene stand alone
-
-    return build_arm
+    # From above, in front: the cutter tip breaks through the top face, cells vanish, and
+    # the arms (which come from below) do not block the view.
+    close_pos = kerf_centre + np.array([0.08, -0.17, 0.15])
+    root.worldbody.add("camera", name="closeup", pos=tuple(close_pos), xyaxes=look_at(close_pos, kerf_centre), fovy=40)
 
 
 def _attach_tool(
-    root: mjcf.RootElement,
+    arm: str,
     arm_model: mjcf.RootElement,
     tool: str,
     geometry: ArmGeometry,
@@ -296,21 +297,26 @@ def _attach_tool(
     options: ModelOptions,
     scene: SceneOptions,
 ) -> None:
-    """Attach ``tool`` at the arm's ``tool_mount``; the cutter never collides with its own arm."""
+    """Attach ``tool`` at the arm's ``tool_mount`` with the arm's collision bits, so the
+    tool (the cutter above all) never collides with its own arm but does with the world
+    and the other arm."""
     plate = layout.plate
     tool_model = tools_mod.build_tool(
-        tool, model_geometry(geometry, options), options, scene.tools, plate.kerf_width, plate.contact_solref, plate.contact_solimp
+        tool,
+        model_geometry(geometry, options),
+        options,
+        scene.tools,
+        plate.kerf_width,
+        plate.contact_solref,
+        plate.contact_solimp,
+        arm_collision_bits(arm),
     )
     if tool_model is None:
         return
     tool_mount = arm_model.find("site", "tool_mount")
     if tool_mount is None:
-        raise ValueError(f"arm model {arm_model.model!r} has no 'tool_mount' site to attach the {tool} to")
+        raise ValueError(f"arm model {arm!r} has no 'tool_mount' site to attach the {tool} to")
     tool_mount.attach(tool_model)
-    if tool == tools_mod.GRINDER:
-        spindle = tool_model.find("body", tools_mod.SPINDLE_BODY)
-        for body in arm_model.find_all("body", exclude_attachments=True):
-            root.contact.add("exclude", body1=spindle, body2=body)
 
 
 def _attach_arm(
@@ -326,7 +332,7 @@ def _attach_arm(
     arm_model = arm_builder(geometry, options, arm, mount.tool)
     site = root.worldbody.add("site", name=f"{arm}_mount", pos=mount.position, size=(0.004,), rgba=(0, 1, 0, 0.5), group=5)
     site.attach(arm_model)
-    _attach_tool(root, arm_model, mount.tool, geometry, layout, options, scene)
+    _attach_tool(arm, arm_model, mount.tool, geometry, layout, options, scene)
     return arm_model
 
 
@@ -350,11 +356,11 @@ def build_scene(
             f"must exceed plate thickness + cut_overtravel = {plate.thickness + plate.cut_overtravel:g} m "
             f"so the housing stays below the plate (got {scene.tools.cutter_length:g})",
         )
-    builder = _default_arm_builder() if arm_builder is None else arm_builder
+    builder = build_arm if arm_builder is None else arm_builder
     root = mjcf.RootElement(model=SCENE_MODEL)
+    apply_simulation_options(root, options)
     root.compiler.autolimits = True
-    root.option.timestep = options.timestep
-    root.option.integrator = options.integrator
+    # Elliptic cones with a high impedance ratio: grasps that do not creep.
     root.option.cone = "elliptic"
     root.option.impratio = 10
     _add_assets_and_visuals(root, layout, scene)
@@ -363,35 +369,4 @@ def build_scene(
     _add_cameras(root, layout)
     for arm in ARMS:
         _attach_arm(root, arm, geometry, layout, options, scene, builder)
-    return root
-
-
-def build_single_arm(
-    geometry: ArmGeometry,
-    options: ModelOptions,
-    tool: str = "none",
-    *,
-    name: str = "arm",
-    scene: SceneOptions | None = None,
-    arm_builder: ArmBuilder | None = None,
-) -> mjcf.RootElement:
-    """One arm on a floor, base at the origin, with an optional tool (validation model)."""
-    scene = SceneOptions() if scene is None else scene
-    builder = _default_arm_builder() if arm_builder is None else arm_builder
-    root = mjcf.RootElement(model=f"single_{name}")
-    root.compiler.autolimits = True
-    root.option.timestep = options.timestep
-    root.option.integrator = options.integrator
-    root.option.cone = "elliptic"
-    root.option.impratio = 10
-    layout = TaskLayout()
-    _add_assets_and_visuals(root, layout, scene)
-    root.worldbody.add("geom", name="floor", type="plane", size=(0, 0, 0.05), pos=(0, 0, -0.01), material="floor")
-    root.worldbody.add("light", name="key", pos=(0.3, -0.6, 1.6), dir=(-0.2, 0.4, -1.0), directional=True, castshadow=True, diffuse=(0.7, 0.7, 0.7))
-    view = np.array([0.0, 0.0, 0.3])
-    pos = view + np.array([0.0, -1.0, 0.2])
-    root.worldbody.add("camera", name="side", pos=tuple(pos), xyaxes=look_at(pos, view), fovy=45)
-    arm_model = builder(geometry, options, name, tool)
-    root.worldbody.add("site", name=f"{name}_mount", size=(0.004,), group=5).attach(arm_model)
-    _attach_tool(root, arm_model, tool, geometry, layout, options, scene)
     return root

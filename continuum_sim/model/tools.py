@@ -8,7 +8,8 @@ which is where the arm builder puts its ``<arm>/tcp`` site, so planner and model
 Grinder: a housing welded to the last disk and a spindle body on a hinge about the tool
 z axis, driven by a velocity actuator (the spindle motor sits in the pack and drives a
 flexible shaft, so only a small mass rides on the arm). The cutting geom ``cutter`` is a
-cylinder of the kerf width whose tip face centre is the TCP. It is frictionless
+cylinder of the kerf width whose tip face centre is the TCP; it belongs to the housing
+body (the spinning ``cutter_visual`` of the same shape is what one sees). It is frictionless
 (condim 1; a spinning cutter's friction is not what we model) and carries a thin
 detection shell (``gap``; MuJoCo ≥ 3.9 detects contacts at dist < margin + gap and
 applies force only at dist < margin = 0): contacts inside the shell are reported to the
@@ -26,11 +27,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from dm_control import mjcf
+from ..glbackend import choose_gl_backend
 
-from ..configio import ConfigError, require_positive, require_range
-from ..geometry import ArmGeometry
-from .options import ModelOptions
+choose_gl_backend()  # before dm_control/mujoco read MUJOCO_GL
+
+from dm_control import mjcf  # noqa: E402
+
+from ..configio import ConfigError, require_positive, require_range  # noqa: E402
+from ..geometry import ArmGeometry  # noqa: E402
+from .options import ModelOptions  # noqa: E402
 
 GRINDER = "grinder"
 GRIPPER = "gripper"
@@ -91,6 +96,16 @@ class ToolOptions:
         """Smallest pad-to-pad gap (both jaws at full travel)."""
         return self.gripper_open_gap - 2 * self.gripper_jaw_travel
 
+    @property
+    def gripper_cable_open(self) -> float:
+        """Cable command that lets the springs open the jaws fully."""
+        return 0.0
+
+    @property
+    def gripper_cable_closed(self) -> float:
+        """Cable command past full closure: on an object the grip force is the force limit."""
+        return -2 * self.gripper_jaw_travel
+
     def gripper_cable_for_gap(self, gap: float) -> float:
         """Cable command (tendon length) that closes the pads to ``gap`` (clipped to travel)."""
         gap = min(max(gap, self.gripper_closed_gap), self.gripper_open_gap)
@@ -108,11 +123,13 @@ def build_grinder(
     cutter_diameter: float,
     contact_solref: tuple[float, float],
     contact_solimp: tuple[float, float, float],
+    collision: tuple[int, int] = (1, 1),
 ) -> mjcf.RootElement:
     """The grinder: housing + spinning cutter whose tip face centre is the grinder TCP.
 
     ``cutter_diameter`` is the kerf width; the cutter takes the foam's contact softness
-    (``contact_*``) so its contacts behave like the foam's.
+    (``contact_*``) so its contacts behave like the foam's. ``collision`` is the carrying
+    arm's (contype, conaffinity): a tool never collides with its own arm.
     """
     length = geometry.tools.grinder_length
     half_disk = geometry.disk_thickness / 2
@@ -134,6 +151,7 @@ def build_grinder(
 
     root = mjcf.RootElement(model=GRINDER)
     root.default.geom.rgba = (0.55, 0.57, 0.6, 1.0)
+    root.default.geom.contype, root.default.geom.conaffinity = collision
     housing = root.worldbody.add("body", name="housing")
     _mass_geom(
         housing,
@@ -164,19 +182,16 @@ def build_grinder(
         contype=0,
         conaffinity=0,
     )
+    cutter_centre = length - tools.cutter_length / 2
     spindle.add(
         "geom",
-        name=CUTTER_GEOM,
+        name="cutter_visual",
         type="cylinder",
         size=(radius, tools.cutter_length / 2),
-        pos=(0, 0, length - housing_top - tools.cutter_length / 2),
+        pos=(0, 0, cutter_centre - housing_top),
         mass=spindle_mass - shaft_mass,
-        condim=1,
-        priority=CUTTER_PRIORITY,
-        solref=contact_solref,
-        solimp=contact_solimp,
-        margin=0.0,
-        gap=tools.cutter_shell,
+        contype=0,
+        conaffinity=0,
         rgba=(0.85, 0.75, 0.3, 1.0),
     )
     # A stripe so the spin is visible in videos; no collision, no mass.
@@ -184,13 +199,33 @@ def build_grinder(
         "geom",
         name="stripe",
         type="box",
-        size=(radius * 0.95, 0.0006, tools.cutter_length / 2 * 0.98),
-        pos=(0, 0, length - housing_top - tools.cutter_length / 2),
+        size=(radius * 1.03, 0.0006, tools.cutter_length / 2 * 0.98),
+        pos=(0, 0, cutter_centre - housing_top),
         contype=0,
         conaffinity=0,
         mass=0,
         rgba=(0.3, 0.2, 0.1, 1.0),
         group=1,
+    )
+    # The cutting geom. It sits on the housing, not on the spinning body: its contacts load
+    # the arm through the bearings, and contact normals off the spin axis cannot torque
+    # the light spindle (which made it unstable). Massless, hidden (group 3) under the
+    # spinning visual cutter of the same shape.
+    housing.add(
+        "geom",
+        name=CUTTER_GEOM,
+        type="cylinder",
+        size=(radius, tools.cutter_length / 2),
+        pos=(0, 0, cutter_centre),
+        mass=0,
+        condim=1,
+        priority=CUTTER_PRIORITY,
+        solref=contact_solref,
+        solimp=contact_solimp,
+        margin=0.0,
+        gap=tools.cutter_shell,
+        rgba=(0.85, 0.75, 0.3, 0.4),
+        group=3,
     )
     spindle.add("site", name="tip", pos=(0, 0, length - housing_top), size=(0.0015,), rgba=(1, 0, 0, 1))
     root.actuator.add(
@@ -204,8 +239,13 @@ def build_grinder(
     return root
 
 
-def build_gripper(geometry: ArmGeometry, options: ModelOptions, tools: ToolOptions) -> mjcf.RootElement:
-    """The two-jaw gripper: pads centred on the TCP, jaws closing along the tool x axis."""
+def build_gripper(
+    geometry: ArmGeometry, options: ModelOptions, tools: ToolOptions, collision: tuple[int, int] = (1, 1)
+) -> mjcf.RootElement:
+    """The two-jaw gripper: pads centred on the TCP, jaws closing along the tool x axis.
+
+    ``collision`` is the carrying arm's (contype, conaffinity), as for the grinder.
+    """
     length = geometry.tools.gripper_length
     half_disk = geometry.disk_thickness / 2
     pad_half = tools.gripper_pad_length / 2
@@ -227,6 +267,7 @@ def build_gripper(geometry: ArmGeometry, options: ModelOptions, tools: ToolOptio
     jaw_mass = (options.gripper_mass - palm_mass) / 2
 
     root = mjcf.RootElement(model=GRIPPER)
+    root.default.geom.contype, root.default.geom.conaffinity = collision
     palm = root.worldbody.add("body", name="palm")
     palm.add(
         "geom",
@@ -295,12 +336,13 @@ def build_tool(
     cutter_diameter: float,
     contact_solref: tuple[float, float],
     contact_solimp: tuple[float, float, float],
+    collision: tuple[int, int] = (1, 1),
 ) -> mjcf.RootElement | None:
     """The named tool's model (``None`` for ``"none"``)."""
     if tool == GRINDER:
-        return build_grinder(geometry, options, tools, cutter_diameter, contact_solref, contact_solimp)
+        return build_grinder(geometry, options, tools, cutter_diameter, contact_solref, contact_solimp, collision)
     if tool == GRIPPER:
-        return build_gripper(geometry, options, tools)
+        return build_gripper(geometry, options, tools, collision)
     if tool == "none":
         return None
     raise ConfigError("tool", f"must be one of 'grinder', 'gripper', 'none' (got {tool!r})")

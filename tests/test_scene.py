@@ -1,0 +1,329 @@
+"""The sample-removal scene and its tools (SPEC §5, §6; issue 4)."""
+
+import numpy as np
+import pytest
+
+from continuum_sim import ArmGeometry, ConfigError
+from continuum_sim.kinematics import straight_cable_lengths
+from continuum_sim.layout import PlateLayout, TaskLayout
+from continuum_sim.model.options import ModelOptions
+from continuum_sim.model.scene import (
+    CAMERAS,
+    KERF_PREFIX,
+    SAMPLE_WELD,
+    SceneOptions,
+    build_scene,
+    kerf_cells,
+    look_at,
+)
+from continuum_sim.model.state import set_arm_configuration
+from continuum_sim.model.tools import ToolOptions
+from model_helpers import carry_with_mocap, compile_root, rigid_arm
+
+import mujoco  # noqa: E402  (continuum_sim.model.scene chose the GL backend first)
+
+LAYOUT = TaskLayout()
+
+
+@pytest.fixture(scope="module")
+def scene():
+    """The default scene with the real arms at their straight pose, motors holding it."""
+    model = compile_root(build_scene(ArmGeometry.default(), LAYOUT, ModelOptions()))
+    data = mujoco.MjData(model)
+    hold_straight(model, data, ArmGeometry.default())
+    mujoco.mj_forward(model, data)
+    return model, data
+
+
+def hold_straight(model, data, geometry):
+    for arm in ("left", "right"):
+        for name, length in zip(geometry.cable_names(arm), straight_cable_lengths(geometry)):
+            data.ctrl[model.actuator(name).id] = length
+
+
+def geoms_of(model, prefix):
+    return [i for i in range(model.ngeom) if model.geom(i).name.startswith(prefix)]
+
+
+def test_scene_has_the_spec_names(scene, geometry):
+    model, _ = scene
+    for arm in ("left", "right"):
+        assert model.site(f"{arm}/tcp").id >= 0
+        for name in geometry.cable_names(arm):
+            assert model.tendon(name).id >= 0 and model.actuator(name).id >= 0
+    for camera in CAMERAS:
+        assert model.camera(camera).id >= 0
+    weld = model.equality(SAMPLE_WELD)
+    assert model.eq_type[weld.id] == mujoco.mjtEq.mjEQ_WELD and model.eq_active0[weld.id]
+    assert model.body("plate").dofnum == 0 and model.body_weldid[model.body("plate").id] == 0  # static
+    assert model.jnt_type[model.body("sample").jntadr[0]] == mujoco.mjtJoint.mjJNT_FREE
+    assert len(geoms_of(model, KERF_PREFIX)) == len(kerf_cells(LAYOUT, SceneOptions().kerf_cell_length)) > 10
+
+
+def test_spindle_and_gripper_actuators(scene):
+    model, _ = scene
+    spindle = model.actuator("left/grinder/spindle")
+    assert model.actuator_trntype[spindle.id] == mujoco.mjtTrn.mjTRN_JOINT
+    assert model.joint(model.actuator_trnid[spindle.id, 0]).name == "left/grinder/spindle"
+    assert model.actuator_biasprm[spindle.id, 2] < 0 and model.actuator_biasprm[spindle.id, 1] == 0  # velocity servo
+    axis = model.jnt_axis[model.joint("left/grinder/spindle").id]
+    np.testing.assert_allclose(axis, [0, 0, 1])
+    cable = model.actuator("right/gripper/cable")
+    assert model.actuator_trntype[cable.id] == mujoco.mjtTrn.mjTRN_TENDON
+    assert model.actuator_forcerange[cable.id, 1] == 0.0 and model.actuator_forcerange[cable.id, 0] < 0  # pulls only
+
+
+def test_tool_centre_points_match_the_tools(geometry):
+    """``<arm>/tcp`` (planner) sits on the cutter's tip face centre and between the pads."""
+    model = compile_root(build_scene(geometry, LAYOUT, ModelOptions()))
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        for arm in ("left", "right"):
+            q = np.concatenate([[rng.uniform(0, 1.2), rng.uniform(-np.pi, np.pi)] for _ in range(3)])
+            set_arm_configuration(model, data, geometry, arm, q)
+        mujoco.mj_forward(model, data)
+        cutter = model.geom("left/grinder/cutter")
+        axis = data.geom_xmat[cutter.id].reshape(3, 3)[:, 2]
+        tip_face = data.geom_xpos[cutter.id] + model.geom_size[cutter.id, 1] * axis
+        np.testing.assert_allclose(tip_face, data.site("left/tcp").xpos, atol=1e-9)
+        assert model.geom_size[cutter.id, 0] * 2 == pytest.approx(LAYOUT.plate.kerf_width)
+        pads = [data.geom_xpos[model.geom(f"right/gripper/pad_{s}").id] for s in "ab"]
+        np.testing.assert_allclose((pads[0] + pads[1]) / 2, data.site("right/tcp").xpos, atol=1e-9)
+        tool_x = data.site_xmat[model.site("right/tcp").id].reshape(3, 3)[:, 0]
+        across = (pads[0] - pads[1]) / np.linalg.norm(pads[0] - pads[1])
+        assert abs(across @ tool_x) == pytest.approx(1.0)  # jaws close along the tool x axis
+
+
+def test_tool_masses(scene):
+    model, _ = scene
+    options = ModelOptions()
+    for tool, mass in (("left/grinder/", options.grinder_mass), ("right/gripper/", options.gripper_mass)):
+        bodies = [i for i in range(model.nbody) if model.body(i).name.startswith(tool)]
+        assert model.body_mass[bodies].sum() == pytest.approx(mass)
+
+
+def test_straight_arms_clear_the_plate(scene):
+    """At the straight pose nothing of either arm or tool touches the plate, sample or each other."""
+    model, data = scene
+    assert not [c for c in data.contact[: data.ncon] if c.dist < 0]
+    robot = geoms_of(model, "left/") + geoms_of(model, "right/")
+    world = [model.geom(n).id for n in ("plate_main", "plate_side", "sample", "clamp_post", "clamp_upper")]
+    world += geoms_of(model, KERF_PREFIX)
+    fromto = np.zeros(6)
+    gap = min(mujoco.mj_geomDistance(model, data, r, w, 0.05, fromto) for r in robot for w in world)
+    assert gap > 0.003
+
+
+def test_cutter_never_collides_with_its_own_arm(scene):
+    model, _ = scene
+    cutter = model.geom("left/grinder/cutter").id
+    own = [g for g in geoms_of(model, "left/") if g != cutter]
+    for g in own:
+        collides = (model.geom_contype[cutter] & model.geom_conaffinity[g]) or (
+            model.geom_contype[g] & model.geom_conaffinity[cutter]
+        )
+        assert not collides, model.geom(g).name
+    for name in ("plate_main", "sample", KERF_PREFIX + "000", "right/gripper/pad_a"):  # … but with these
+        g = model.geom(name).id
+        assert (model.geom_contype[cutter] & model.geom_conaffinity[g]) or (model.geom_contype[g] & model.geom_conaffinity[cutter])
+
+
+def test_plate_pieces_tile_the_plate(scene):
+    """Plate boxes + kerf cells + sample (+ its clearance) cover the plate exactly once."""
+    model, data = scene
+    plate = LAYOUT.plate
+    gap = SceneOptions().sample_gap
+    pieces = ["plate_main", "plate_side", "sample"] + [model.geom(g).name for g in geoms_of(model, KERF_PREFIX)]
+    area = sum(4 * model.geom_size[model.geom(n).id, 0] * model.geom_size[model.geom(n).id, 1] for n in pieces)
+    clearance = gap * (plate.sample_x - gap) + gap * plate.sample_y
+    assert area + clearance == pytest.approx(plate.size[0] * plate.size[1], rel=1e-9)
+    for n in pieces:
+        assert 2 * model.geom_size[model.geom(n).id, 2] == pytest.approx(plate.thickness)
+    # every cell lies in the kerf band: within half a kerf width of the kerf centre line
+    line = plate.kerf_polyline()
+    for g in geoms_of(model, KERF_PREFIX):
+        c = data.geom_xpos[g][:2]
+        d = min(_point_segment_distance(c, line[i, :2], line[i + 1, :2]) for i in range(len(line) - 1))
+        assert d < 1e-9 + plate.kerf_width / 2
+    # the foam contacts are the layout's soft ones
+    for n in pieces:
+        np.testing.assert_allclose(model.geom_solref[model.geom(n).id], plate.contact_solref)
+        np.testing.assert_allclose(model.geom_solimp[model.geom(n).id, :3], plate.contact_solimp)
+
+
+def _point_segment_distance(p, a, b):
+    t = np.clip((p - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
+    return float(np.linalg.norm(p - (a + t * (b - a))))
+
+
+def test_kerf_cells_cover_the_polyline_once():
+    for cell_length in (0.004, 0.005, 0.013):
+        cells = kerf_cells(LAYOUT, cell_length)
+        assert max(c.length for c in cells) <= cell_length + 1e-12
+        line = LAYOUT.plate.kerf_polyline()
+        legs = np.linalg.norm(np.diff(line, axis=0), axis=1)
+        # first leg runs on by half a kerf to the corner square's end, the second starts after it
+        assert sum(c.length for c in cells) == pytest.approx(legs.sum())
+
+
+def test_sample_weld_holds_then_releases(geometry):
+    model = compile_root(build_scene(geometry, LAYOUT, ModelOptions(segments_per_section=3)))
+    data = mujoco.MjData(model)
+    hold_straight(model, data, _resampled(geometry, 3))
+    mujoco.mj_forward(model, data)
+    start = data.body("sample").xpos.copy()
+    while data.time < 0.3:
+        mujoco.mj_step(model, data)
+    assert np.linalg.norm(data.body("sample").xpos - start) < 1e-4
+    data.eq_active[model.equality(SAMPLE_WELD).id] = 0
+    while data.time < 0.5:
+        mujoco.mj_step(model, data)
+    assert start[2] - data.body("sample").xpos[2] > 0.1  # falls freely once released
+
+
+def _resampled(geometry, n):
+    from continuum_sim.model.options import model_geometry
+
+    return model_geometry(geometry, ModelOptions(segments_per_section=n))
+
+
+def test_spindle_runs_at_commanded_speed(geometry):
+    options = ModelOptions(segments_per_section=2)
+    model = compile_root(build_scene(geometry, LAYOUT, options))
+    data = mujoco.MjData(model)
+    hold_straight(model, data, _resampled(geometry, 2))
+    speed = ToolOptions().spindle_speed
+    data.ctrl[model.actuator("left/grinder/spindle").id] = speed
+    while data.time < 0.15:
+        mujoco.mj_step(model, data)
+    dof = model.jnt_dofadr[model.joint("left/grinder/spindle").id]
+    assert data.qvel[dof] == pytest.approx(speed, rel=0.01)
+    assert not any(w.number for w in data.warning)
+
+
+def carried_gripper_scene(foam_friction: float = 1.0):
+    """The default scene, the right arm replaced by a rigid carrier welded to a mocap body."""
+    geometry = ArmGeometry.default()
+    root = build_scene(geometry, LAYOUT, ModelOptions(), SceneOptions(foam_friction=foam_friction), arm_builder=rigid_arm)
+    carry_with_mocap(root, "right", geometry.length)
+    return geometry, compile_root(root)
+
+
+@pytest.fixture(scope="module")
+def carried_gripper():
+    return carried_gripper_scene()
+
+
+def test_gripper_springs_open_and_cable_closes(carried_gripper):
+    geometry, model = carried_gripper
+    data = mujoco.MjData(model)
+    tools = ToolOptions()
+    cable = model.actuator("right/gripper/cable").id
+    jaws = [model.jnt_qposadr[model.joint(f"right/gripper/jaw_{s}").id] for s in "ab"]
+    data.qpos[jaws] = 0.008
+    data.ctrl[cable] = tools.gripper_cable_open
+    while data.time < 0.5:
+        mujoco.mj_step(model, data)
+    np.testing.assert_allclose(data.qpos[jaws], 0.0, atol=2e-4)  # springs open the jaws
+    data.ctrl[cable] = tools.gripper_cable_for_gap(0.012)
+    while data.time < 1.5:
+        mujoco.mj_step(model, data)
+    gap = tools.gripper_open_gap - data.qpos[jaws].sum()
+    assert gap == pytest.approx(0.012, abs=0.001)
+
+
+@pytest.mark.parametrize("friction", [1.0, 0.0])
+def test_gripper_holds_and_carries_the_sample(friction):
+    """Jaws closed across the plate thickness hold the released foam sample while moving
+    (pulled back along the tool axis: friction does it; without friction it stays behind)."""
+    geometry, model = carried_gripper_scene(friction)
+    data = mujoco.MjData(model)
+    tools = ToolOptions()
+    plate = LAYOUT.plate
+    mocap = model.body("right_target").mocapid[0]
+    free = model.jnt_qposadr[model.body("right/").jntadr[0]]
+    # tool z along −x (into the corner from the side), tool x vertical: jaws close across the thickness
+    quat = np.array([np.cos(np.pi / 4), 0.0, -np.sin(np.pi / 4), 0.0])
+    rot = np.zeros(9)
+    mujoco.mju_quat2Mat(rot, quat)
+    reach = rot.reshape(3, 3) @ [0, 0, geometry.length + geometry.tools.gripper_length]
+    tcp_goal = np.array([plate.corner_x - 0.012, plate.sample_centre[1], plate.sample_centre[2]])
+    base_goal = tcp_goal - reach
+
+    def base_at(t: float) -> np.ndarray:  # approach along the tool axis, then grip, then carry
+        s = np.clip(t / 0.4, 0.0, 1.0)
+        approach = base_goal + (1 - s * s * (3 - 2 * s)) * np.array([0.05, 0.0, 0.0])
+        c = np.clip((t - 1.0) / 1.0, 0.0, 1.0)
+        return approach + c * c * (3 - 2 * c) * np.array([0.10, -0.06, 0.06])
+
+    data.qpos[free : free + 3] = base_at(0.0)
+    data.qpos[free + 3 : free + 7] = quat
+    data.mocap_pos[mocap], data.mocap_quat[mocap] = base_at(0.0), quat
+    mujoco.mj_forward(model, data)
+    cable = model.actuator("right/gripper/cable").id
+    while data.time < 2.3:
+        data.mocap_pos[mocap] = base_at(data.time)
+        if data.time >= 0.5:
+            data.ctrl[cable] = tools.gripper_cable_closed
+        if data.time >= 0.9:
+            data.eq_active[model.equality(SAMPLE_WELD).id] = 0  # as if the kerf were cut
+        mujoco.mj_step(model, data)
+        if abs(data.time - 0.9) < 5e-4:
+            held = data.body("sample").xpos - data.site("right/tcp").xpos
+    carried = data.body("sample").xpos - data.site("right/tcp").xpos
+    if friction == 0.0:
+        assert np.linalg.norm(carried - held) > 0.02
+        return
+    assert np.linalg.norm(carried - held) < 0.002
+    assert data.body("sample").xpos[2] > plate.sample_centre[2] + 0.05  # lifted with the gripper
+    force = data.actuator_force[cable]
+    assert -tools.gripper_max_force - 1e-9 <= force < -0.2  # the cable pulls, within its limit
+    assert not any(w.number for w in data.warning)
+
+
+def test_look_at_points_the_camera_at_the_target():
+    pos, target = np.array([0.3, -0.8, 0.6]), np.array([0.0, 0.05, 0.3])
+    x, y = np.array(look_at(pos, target)[:3]), np.array(look_at(pos, target)[3:])
+    forward = -np.cross(x, y)  # MuJoCo cameras look along their −z
+    np.testing.assert_allclose(forward, (target - pos) / np.linalg.norm(target - pos), atol=1e-12)
+    assert y[2] > 0  # upright
+
+
+def test_cameras_see_the_cut(scene):
+    model, data = scene
+    centre = LAYOUT.plate.kerf_polyline().mean(axis=0)
+    cam = model.camera("closeup").id
+    to_kerf = centre - data.cam_xpos[cam]
+    view = -data.cam_xmat[cam].reshape(3, 3)[:, 2]
+    assert np.degrees(np.arccos(view @ to_kerf / np.linalg.norm(to_kerf))) < 2.0
+    cam = model.camera("overview").id
+    for p in (np.array(LAYOUT.left.position) + [0, 0, 0.6], np.array(LAYOUT.right.position), centre):
+        d = p - data.cam_xpos[cam]
+        angle = np.degrees(np.arccos(-data.cam_xmat[cam].reshape(3, 3)[:, 2] @ d / np.linalg.norm(d)))
+        assert angle < model.cam_fovy[cam] / 2  # inside the vertical field of view cone
+
+
+@pytest.mark.parametrize(
+    "make, field",
+    [
+        (lambda: SceneOptions(kerf_cell_length=0.0), "kerf_cell_length"),
+        (lambda: SceneOptions(render_width=3), "render_width"),
+        (lambda: ToolOptions(gripper_jaw_travel=0.02), "gripper_jaw_travel"),
+        (lambda: ToolOptions(spindle_speed=5000.0), "spindle_speed"),
+        (
+            lambda: build_scene(ArmGeometry(), LAYOUT, ModelOptions(), SceneOptions(tools=ToolOptions(cutter_length=0.011))),
+            "tools.cutter_length",
+        ),
+        (
+            lambda: build_scene(
+                ArmGeometry(), TaskLayout(plate=PlateLayout(sample_x=0.15)), ModelOptions(), arm_builder=rigid_arm
+            ),
+            "plate.sample_x",
+        ),
+    ],
+)
+def test_invalid_scene_config_names_the_field(make, field):
+    with pytest.raises(ConfigError) as info:
+        make()
+    assert info.value.field == field
