@@ -288,7 +288,7 @@ def build_gripper(
             range=(0.0, tools.gripper_jaw_travel),
             limited=True,
             stiffness=tools.gripper_spring,
-            springref=0.0,
+            springref=-0.1 * tools.gripper_jaw_travel,  # preloaded: open jaws rest firmly on their stop
             damping=tools.gripper_damping,
             armature=1e-4,
         )

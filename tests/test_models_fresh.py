@@ -1,0 +1,44 @@
+"""The committed models/ files are what `continuum-sim build-model` generates now."""
+
+from pathlib import Path
+
+import pytest
+
+from continuum_sim.cli import main
+from continuum_sim.model.export import ARM_FILE, DUAL_ARM_FILE, model_xml_texts
+
+import mujoco  # noqa: E402  (export imported the scene, which chose the GL backend)
+
+MODELS = Path(__file__).resolve().parent.parent / "models"
+
+
+@pytest.fixture(scope="module")
+def fresh() -> dict[str, str]:
+    return model_xml_texts()
+
+
+@pytest.mark.parametrize("name", [DUAL_ARM_FILE, ARM_FILE])
+def test_committed_model_is_fresh(fresh, name):
+    committed = MODELS / name
+    assert committed.exists(), f"models/{name} missing: run `continuum-sim build-model`"
+    assert committed.read_text() == fresh[name], f"models/{name} is stale: run `continuum-sim build-model`"
+
+
+@pytest.mark.parametrize("name", [DUAL_ARM_FILE, ARM_FILE])
+def test_committed_model_loads_with_plain_mujoco(name):
+    model = mujoco.MjModel.from_xml_path(str(MODELS / name))
+    assert model.ntendon >= 9 and model.nu >= 9
+
+
+def test_build_model_cli_writes_the_same_files(tmp_path, fresh, capsys):
+    assert main(["build-model", "--out", str(tmp_path)]) == 0
+    for name in (DUAL_ARM_FILE, ARM_FILE):
+        assert (tmp_path / name).read_text() == fresh[name]
+    assert "wrote" in capsys.readouterr().out
+
+
+def test_build_model_cli_bad_config_exits_2(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[model]\nsegments_per_section = -1\n")
+    assert main(["build-model", "--out", str(tmp_path), "--config", str(bad)]) == 2
+    assert "segments_per_section" in capsys.readouterr().err
