@@ -43,16 +43,18 @@ def solve_tip_load(section: int, options: ModelOptions, force=(0, 0, 0), torque=
 @pytest.mark.parametrize("segments", [0, 20])
 @pytest.mark.parametrize("section", SECTIONS)
 def test_small_tip_force_deflects_like_euler_bernoulli(section, segments):
-    """δ = F·L³/(3EI) within 1 %; and the chain's exact discrete value F·L³/(3EI)·(1 − 1/(4n²))
-    (joints sample the bending moment by the midpoint rule) within 0.05 %, which also
-    separates the O(1/n²) discretisation from any stiffness error."""
+    """δ = F·L³/(3EI) and tip slope F·L²/(2EI) within 1 %; and the chain's exact discrete
+    value F·L³/(3EI)·(1 − 1/(4n²)) (joints sample the bending moment by the midpoint rule)
+    within 0.05 %, which separates the O(1/n²) discretisation from any stiffness error."""
     options = ModelOptions(segments_per_section=segments)
     _, _, b = solve_tip_load(section, options)
     force = 1e-3 * b.ei / b.length**2  # δ/L ≈ 3e-4: linear regime
-    nodes, _, b = solve_tip_load(section, options, force=(force, 0, 0))
+    nodes, tip_rotation, b = solve_tip_load(section, options, force=(force, 0, 0))
     deflection = nodes[-1, 0]
     assert deflection == pytest.approx(beam.tip_deflection_force(force, b.length, b.ei), rel=0.01)
     assert deflection == pytest.approx(beam.chain_tip_deflection(force, b.length, b.ei, b.n), rel=5e-4)
+    slope = math.atan2(tip_rotation[0, 2], tip_rotation[2, 2])
+    assert slope == pytest.approx(beam.tip_slope_force(force, b.length, b.ei), rel=0.01)
 
 
 @pytest.mark.parametrize("joint", ["ball", "hinge_pair"])

@@ -4,6 +4,7 @@ A seeded subset of the 500 load cases per rod keeps this fast; the full table ov
 counts and joint kinds comes from ``scripts/sorosim_table.py`` (README).
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -13,7 +14,7 @@ from continuum_sim.configio import ConfigError
 from continuum_sim.glbackend import choose_gl_backend
 from continuum_sim.model.rod import RodSpec, apply_node_wrench, compile_rod, node_body_ids, node_poses
 from continuum_sim.validation.sorosim import RODS, STEEL, TPU, RodStatics, load_statics, subset
-from continuum_sim.validation.statics import StaticSolver
+from continuum_sim.validation.statics import StaticSolver, StaticSolverOptions
 
 choose_gl_backend()
 import mujoco  # noqa: E402
@@ -77,9 +78,7 @@ def test_swapped_wrench_reading_misses(rod_cases):
     statics = RodStatics(rod.spec(10, "ball"))
     misses = []
     for c in cases[:3]:
-        swapped = type(c)(
-            c.index, c.gravity, np.roll(c.mid_wrench, 3), np.roll(c.tip_wrench, 3), c.arclength, c.positions, c.euler
-        )
+        swapped = dataclasses.replace(c, mid_wrench=np.roll(c.mid_wrench, 3), tip_wrench=np.roll(c.tip_wrench, 3))
         misses.append(statics.error(swapped).tip / rod.length)
     assert min(misses) > 0.05
 
@@ -139,6 +138,13 @@ def test_rod_spec_rejects_nonsense(field, kwargs):
     base = dict(length=0.6, radius=0.8e-3, youngs_modulus=200e9, poisson_ratio=0.33, density=7870.0)
     with pytest.raises(ConfigError) as info:
         RodSpec(**{**base, **kwargs})
+    assert info.value.field == field
+
+
+@pytest.mark.parametrize(("field", "kwargs"), [("tolerance", dict(tolerance=0.0)), ("ramps", dict(ramps=(1, 0)))])
+def test_solver_options_reject_nonsense(field, kwargs):
+    with pytest.raises(ConfigError) as info:
+        StaticSolverOptions(**kwargs)
     assert info.value.field == field
 
 

@@ -73,9 +73,9 @@ def cantilever_first_frequency(
     """First bending natural frequency (Hz) of a uniform cantilever.
 
     With the defaults this is β₁²·sqrt(EI/(μL⁴))/(2π). Otherwise it is the exact first
-    root of the Rayleigh-beam frequency equation (EI w'''' + ω²ρI w'' − ω²μ w = 0, ρI the rotary inertia per length) with
-    a point mass and rotary inertia at the free end: a 4 × 4 boundary determinant in ω,
-    bracketed on a grid and refined by Brent's method.
+    root of the Rayleigh-beam equation EI w'''' + ω²ρI w'' − ω²μ w = 0 (ρI: rotary
+    inertia per length) with a point mass and rotary inertia at the free end: a 4 × 4
+    boundary determinant in ω, bracketed on a grid and refined by Brent's method.
     """
     from scipy.optimize import brentq
 

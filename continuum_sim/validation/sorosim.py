@@ -30,6 +30,7 @@ Array = NDArray[np.float64]
 
 DATA_ENV = "CONTINUUM_SIM_SOROSIM"
 EULER_SEQUENCE = "XYZ"
+MID_STATION = 6  # seg1_s07, s = L/2 (the tip is the last station)
 
 
 @dataclass(frozen=True)
@@ -65,19 +66,11 @@ class StaticCase:
     positions: Array  # (14, 3) m
     euler: Array  # (14, 3) rad, EULER_SEQUENCE
 
-    @property
-    def tip(self) -> Array:
-        return self.positions[-1]
-
     def rotations(self) -> Array:
         """(14, 3, 3) cross-section frames at the stations (tangent = first column)."""
         from scipy.spatial.transform import Rotation
 
         return Rotation.from_euler(EULER_SEQUENCE, self.euler).as_matrix()
-
-    @property
-    def mid(self) -> Array:
-        return self.positions[6]
 
 
 def data_dir() -> Path:
@@ -154,15 +147,12 @@ class RodStatics:
 
     def solve(self, case: StaticCase) -> tuple[Array, Array, bool, int]:
         """Node positions and rotations at equilibrium under ``case``'s loads, from straight."""
-        import mujoco
-
         m, d = self.model, self.data
         d.qpos[:] = m.qpos0
         d.xfrc_applied[:] = 0.0
         apply_node_wrench(m, d, self.nodes[self.spec.n_links // 2], case.mid_wrench[:3], case.mid_wrench[3:])
         apply_node_wrench(m, d, self.nodes[-1], case.tip_wrench[:3], case.tip_wrench[3:])
         result = self.solver.solve(case.gravity, d.xfrc_applied.copy())
-        mujoco.mj_kinematics(m, d)
         positions, rotations = node_poses(d, self.nodes)
         return positions, rotations, result.converged, result.evaluations
 
@@ -172,7 +162,9 @@ class RodStatics:
         distance = np.linalg.norm(model_stations - case.positions, axis=1)
         relative = rotations[-1].T @ case.rotations()[-1]
         angle = float(np.arccos(np.clip((np.trace(relative) - 1.0) / 2.0, -1.0, 1.0)))
-        return CaseError(float(distance[-1]), float(distance[6]), float(distance.max()), angle, converged, evaluations)
+        return CaseError(
+            float(distance[-1]), float(distance[MID_STATION]), float(distance.max()), angle, converged, evaluations
+        )
 
 
 def subset(cases: list[StaticCase], count: int, seed: int = 0) -> list[StaticCase]:

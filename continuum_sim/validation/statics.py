@@ -145,8 +145,8 @@ class StaticSolver:
 def linear_natural_frequencies(model, data, count: int = 1) -> Array:
     """Lowest natural frequencies (Hz) of the model linearised at ``data.qpos``, at rest.
 
-    Solves K v = ω² M v with M from ``mj_fullM`` and K = −∂f/∂q (the static solver's
-    stiffness: springs plus gravity and load stiffness, here none), undamped.
+    Solves K v = ω² M v with M from ``mj_fullM`` and K = −∂f/∂q, the static solver's
+    stiffness (joint springs, plus gravity's when ``model.opt.gravity`` is on), undamped.
     """
     import mujoco
     from scipy.linalg import eigh
