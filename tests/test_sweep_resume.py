@@ -53,6 +53,7 @@ def test_killed_sweep_resumes_with_every_variant_exactly_once_and_the_same_value
     # Reference: uninterrupted, in-process, shared-model mode.
     reference = run_sweep(spec, tmp_path / "reference", workers=2, batch="on", progress=False)
     assert reference.n_run == 9 and reference.n_failed == 1
+    assert {p.name for p in reference.plots} >= {"sag_mm__vs__model.stiffness_scale.png", "overview__vs__model.stiffness_scale.png"}
 
     # Killed: one process per variant, SIGKILL to the whole process group once some records exist.
     out = tmp_path / "killed"

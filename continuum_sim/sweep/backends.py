@@ -86,7 +86,7 @@ def _drain(pool, spec: SweepSpec, variants: list[Variant], workers: int, run_roo
 
 
 def _failed(reason: str) -> dict[str, Any]:
-    return {"status": "failed", "metrics": {}, "error": reason, "wall_s": None, "host": None, "pid": None}
+    return {"status": "failed", "metrics": {}, "error": reason, "wall_s": None, "cpu_s": None, "host": None, "pid": None}
 
 
 # ------------------------------------------------------------------ shared model
@@ -98,17 +98,18 @@ def run_shared(spec: SweepSpec, variants: Sequence[Variant], workers: int, on_re
 
     configs = [spec.config_for(v) for v in variants]
     host, pid = socket.gethostname(), os.getpid()
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     for indices, results in evaluate_static_shared(configs, spec.evaluation, nthread=workers):
-        now = time.perf_counter()
-        share = (now - start) / len(indices)  # a batch's wall time, shared by its variants
-        start = now
+        now, cpu_now = time.perf_counter(), time.process_time()
+        share = (now - start) / len(indices)  # a batch's wall and CPU time, shared by its variants
+        cpu_share = (cpu_now - cpu_start) / len(indices)
+        start, cpu_start = now, cpu_now
         for i, result in zip(indices, results):
             if isinstance(result, Exception):
                 out = {"status": "failed", "metrics": getattr(result, "metrics", {}), "error": describe(result)}
             else:
                 out = {"status": "ok", "metrics": result, "error": None}
-            on_result(variants[i], {**out, "wall_s": share, "host": host, "pid": pid})
+            on_result(variants[i], {**out, "wall_s": share, "cpu_s": cpu_share, "host": host, "pid": pid})
 
 
 # --------------------------------------------------------------------------- Ray

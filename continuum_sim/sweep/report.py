@@ -166,7 +166,39 @@ def write_plots(spec: SweepSpec, records: dict[str, dict[str, Any]], root: Path)
             plt.close(fig)
         if len(spec.axes) == 2:
             written.append(_heatmap(plt, spec, grid, metric, out_dir))
+    if len(spec.axes) == 1:
+        overview = _overview(plt, spec, records, out_dir)
+        if overview is not None:
+            written.append(overview)
     return written
+
+
+def _overview(plt, spec: SweepSpec, records, out_dir: Path) -> Path | None:
+    """All metrics of a one-parameter sweep on one page (the figure to show people)."""
+    (axis,) = spec.axes
+    series = [(m, _values(spec, records, m)) for m in spec.metrics]
+    series = [(m, y) for m, y in series if np.any(np.isfinite(y))]
+    if not series:
+        return None
+    cols = 2 if len(series) > 1 else 1
+    rows = math.ceil(len(series) / cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 2.9 * rows), squeeze=False, sharex=True)
+    x = np.asarray(axis.values, dtype=float)
+    for ax, (metric, y) in zip(axes.flat, series):
+        ax.plot(x, y, "o-", ms=4)
+        if _log_axis(axis):
+            ax.set_xscale("log")
+        ax.set_ylabel(metric, fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes.flat[len(series) :]:
+        ax.set_visible(False)
+    for ax in axes[-1]:
+        ax.set_xlabel(axis.path)
+    fig.suptitle(f"{spec.evaluation.kind} vs {axis.path}", fontsize=11)
+    fig.tight_layout()
+    path = _save(fig, out_dir / f"overview__vs__{_safe(axis.path)}.png")
+    plt.close(fig)
+    return path
 
 
 def _heatmap(plt, spec: SweepSpec, grid: np.ndarray, metric: str, out_dir: Path) -> Path:

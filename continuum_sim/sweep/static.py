@@ -271,7 +271,7 @@ def _metrics(case: Case, final_a: np.ndarray, final_b: np.ndarray) -> dict[str, 
     p_a = a.site_xpos[case.point_site].copy()
     b = _observe(case, final_b, "loaded", 2 * case.nstep * dt)
     p_b = b.site_xpos[case.point_site].copy()
-    tension = -np.asarray(b.actuator_force)
+    tension = 0.0 - np.asarray(b.actuator_force)  # cable tension >= 0 (and no -0.0)
     speed = float(np.max(np.abs(b.qvel)))
     if not speed < 1e3:
         raise EvaluationFailed(f"diverged: joint speed {speed:.3g} rad/s at the end")

@@ -96,6 +96,7 @@ class ResultStore:
             "error": result.get("error"),
             "metrics": {k: _finite(v) for k, v in (result.get("metrics") or {}).items()},
             "wall_s": result.get("wall_s"),
+            "cpu_s": result.get("cpu_s"),
             "host": result.get("host"),
             "pid": result.get("pid"),
             "backend": backend,

@@ -74,7 +74,7 @@ def describe(exc: BaseException) -> str:
 
 def evaluate_payload(payload: dict[str, Any]) -> dict[str, Any]:
     """The worker entry point: ``{"config", "evaluation", "run_dir"}`` → result dict."""
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     metrics: dict[str, Any] = {}
     error = None
     try:
@@ -90,6 +90,7 @@ def evaluate_payload(payload: dict[str, Any]) -> dict[str, Any]:
         "metrics": metrics,
         "error": error,
         "wall_s": time.perf_counter() - start,
+        "cpu_s": time.process_time() - cpu_start,
         "host": socket.gethostname(),
         "pid": os.getpid(),
     }
