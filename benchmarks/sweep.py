@@ -181,6 +181,7 @@ def main() -> None:
             "variants_per_s": n / r["eval_wall_s"],
             "wall_s_per_variant": r["eval_wall_s"] / n,
             "cpu_s_per_variant": r["eval_cpu_s"] / n,
+            "cores_used": r["eval_cpu_s"] / r["eval_wall_s"],  # < workers when other load holds the cores
             "report_wall_s": r["report_wall_s"],
             "raw_eval_wall_s": r["raw_eval_wall_s"],
         }

@@ -86,16 +86,20 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         raise UsageError(f"--workers: must be >= 1 (got {args.workers})")
     spec = load_spec(args.spec)  # every check happens here, before any work
     out = Path(args.out) if args.out else Path("sweeps") / Path(args.spec).stem
-    result = run_sweep(
-        spec,
-        out,
-        workers=args.workers,
-        backend=args.backend,
-        address=args.address,
-        batch=args.batch,
-        retry_failed=args.retry_failed,
-        progress=not args.quiet,
-    )
+    try:
+        result = run_sweep(
+            spec,
+            out,
+            workers=args.workers,
+            backend=args.backend,
+            address=args.address,
+            batch=args.batch,
+            retry_failed=args.retry_failed,
+            progress=not args.quiet,
+        )
+    except KeyboardInterrupt:
+        print(f"continuum-sim sweep: interrupted; finished variants are kept in {out}/records, rerun to resume", file=sys.stderr)
+        return 130
     if not args.quiet:
         print(format_table(spec, result.records))
     print(

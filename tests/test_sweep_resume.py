@@ -13,6 +13,7 @@ import pytest
 
 from continuum_sim import ConfigError
 from continuum_sim.sweep import load_spec, run_sweep
+from continuum_sim.sweep.store import ResultStore
 
 ROOT = Path(__file__).resolve().parents[1]
 METRIC_COLUMNS = ("sag_mm", "pcc_error_mm", "max_cable_tension_n")
@@ -134,6 +135,9 @@ def test_results_folder_table_plots_and_refusals(tmp_path):
     (tmp_path / "stuff" / "notes.txt").write_text("mine")
     with pytest.raises(ConfigError, match="exists and is not a sweep folder"):
         run_sweep(spec, tmp_path / "stuff", progress=False)
+    assert [p.name for p in (tmp_path / "stuff").iterdir()] == ["notes.txt"]
+    with ResultStore(tmp_path / "busy").lock(), pytest.raises(ConfigError, match="in use by another running sweep"):
+        run_sweep(spec, tmp_path / "busy", progress=False)
 
 
 def test_parquet_table_when_pyarrow_is_installed(tmp_path):

@@ -55,8 +55,9 @@ def test_defaults_and_evaluation_parameters():
 @pytest.mark.parametrize(
     ("data", "message"),
     [
-        ({"grid": {"model.stifness_scale": [1.0]}}, r"model\.stifness_scale: unknown field path"),
-        ({"grid": {"arm.sections.7.hinge_width": [0.004]}}, r"arm\.sections\.7: unknown field path"),
+        ({"grid": {"model.stifness_scale": [1.0]}}, r"grid\.model\.stifness_scale: unknown parameter path: model has no 'stifness_scale' \(it has fields joint, segments_per_section, stiffness_scale"),
+        ({"grid": {"arm.sections.7.hinge_width": [0.004]}}, r"arm\.sections has no '7' \(it has indices 0 to 2\)"),
+        ({"grid": {"wobble": [1.0]}}, r"the scenario configuration has no 'wobble' \(it has fields arm, layout, model"),
         ({"grid": {}}, r"grid: empty"),
         ({"grid": {"model.stiffness_scale": []}}, r"grid\.model\.stiffness_scale: empty list"),
         ({"grid": {"model.stiffness_scale": [1.0, "stiff"]}}, r"stiffness_scale\[1\]: must be a number \(got str 'stiff'\)"),
@@ -134,7 +135,7 @@ def test_load_spec_resolves_base_relative_to_the_spec(tmp_path):
 @pytest.mark.parametrize(
     ("body", "message"),
     [
-        ('[grid]\n"model.nope" = [1.0]\n[evaluation]\nkind = "gravity_sag"\n', "model.nope: unknown field path"),
+        ('[grid]\n"model.nope" = [1.0]\n[evaluation]\nkind = "gravity_sag"\n', "grid.model.nope: unknown parameter path: model has no 'nope'"),
         ('[grid]\n[evaluation]\nkind = "gravity_sag"\n', "grid: empty"),
         ('[grid]\n"model.stiffness_scale" = ["a", "b"]\n[evaluation]\nkind = "gravity_sag"\n', "must be a number"),
     ],

@@ -84,42 +84,43 @@ def run_sweep(
     preflight(spec, backend, workers)
     mode = choose_mode(spec, backend, batch)
     store = ResultStore(out)
-    store.prepare(spec)
-    records = store.load()
-    variants = spec.variants()
-    wanted = {v.variant_id for v in variants}
-    records = {k: r for k, r in records.items() if k in wanted}
-    pending = [
-        v
-        for v in variants
-        if v.variant_id not in records or (retry_failed and records[v.variant_id]["status"] != "ok")
-    ]
-    n_skipped = len(variants) - len(pending)
-    run_root = str(store.root / "runs") if getattr(spec.evaluation, "keep_runs", False) else None
+    with store.lock():
+        store.prepare(spec)
+        records = store.load()
+        variants = spec.variants()
+        wanted = {v.variant_id for v in variants}
+        records = {k: r for k, r in records.items() if k in wanted}
+        pending = [
+            v
+            for v in variants
+            if v.variant_id not in records or (retry_failed and records[v.variant_id]["status"] != "ok")
+        ]
+        n_skipped = len(variants) - len(pending)
+        run_root = str(store.root / "runs") if getattr(spec.evaluation, "keep_runs", False) else None
 
-    bar = tqdm(total=len(variants), initial=n_skipped, desc="sweep", unit="variant", disable=not progress, dynamic_ncols=True)
-    failed_now = 0
+        bar = tqdm(total=len(variants), initial=n_skipped, desc="sweep", unit="variant", disable=not progress, dynamic_ncols=True)
+        failed_now = 0
 
-    def on_result(variant: Variant, result: dict[str, Any]) -> None:
-        nonlocal failed_now
-        records[variant.variant_id] = store.write(variant, spec, result, f"{backend}/{mode}")
-        failed_now += result["status"] != "ok"
-        bar.update(1)
-        if failed_now:
-            bar.set_postfix(failed=failed_now)
+        def on_result(variant: Variant, result: dict[str, Any]) -> None:
+            nonlocal failed_now
+            records[variant.variant_id] = store.write(variant, spec, result, f"{backend}/{mode}")
+            failed_now += result["status"] != "ok"
+            bar.update(1)
+            if failed_now:
+                bar.set_postfix(failed=failed_now)
 
-    try:
-        if pending:
-            n_workers = workers or backends.default_workers()
-            if backend == "ray":
-                backends.run_ray(spec, pending, workers, address, run_root, on_result)
-            elif mode == "shared":
-                backends.run_shared(spec, pending, n_workers, on_result)
-            else:
-                backends.run_processes(spec, pending, n_workers, run_root, on_result)
-    finally:
-        bar.close()
-    tables = write_table(spec, records, store.root)
-    plots = write_plots(spec, records, store.root)
+        try:
+            if pending:
+                n_workers = workers or backends.default_workers()
+                if backend == "ray":
+                    backends.run_ray(spec, pending, workers, address, run_root, on_result)
+                elif mode == "shared":
+                    backends.run_shared(spec, pending, n_workers, on_result)
+                else:
+                    backends.run_processes(spec, pending, n_workers, run_root, on_result)
+        finally:
+            bar.close()
+        tables = write_table(spec, records, store.root)
+        plots = write_plots(spec, records, store.root)
     n_failed = sum(1 for r in records.values() if r["status"] != "ok")
     return SweepResult(store.root, len(variants), n_skipped, len(pending), n_failed, mode, tuple(tables), tuple(plots), records)

@@ -168,6 +168,31 @@ def _axis_values(path: str, raw: Any, kind: type) -> tuple[tuple[Number, ...], b
     return tuple(out), log
 
 
+def _lookup(base: ScenarioConfig, path: str) -> Any:
+    """The base value at ``path``; an unknown path names the bad part and the choices there."""
+    try:
+        return get_path(base, path)
+    except ConfigError:
+        pass
+    node: Any = to_dict(base)
+    parts = path.split(".")
+    for i, part in enumerate(parts):
+        if isinstance(node, dict) and part in node:
+            node = node[part]
+        elif isinstance(node, list) and part.isdigit() and int(part) < len(node):
+            node = node[int(part)]
+        else:
+            where = ".".join(parts[:i]) or "the scenario configuration"
+            if isinstance(node, dict):
+                choices = "fields " + ", ".join(node)
+            elif isinstance(node, list):
+                choices = f"indices 0 to {len(node) - 1}"
+            else:
+                choices = "no fields: it is a value"
+            raise ConfigError(f"grid.{path}", f"unknown parameter path: {where} has no {part!r} (it has {choices})")
+    raise ConfigError(f"grid.{path}", "unknown parameter path")
+
+
 def parse_spec(data: dict[str, Any], spec_dir: str | os.PathLike[str] | None = None, source_text: str = "") -> SweepSpec:
     """Validate a spec dict (as read from TOML) into a ``SweepSpec``; ``ConfigError`` if bad."""
     allowed = ("base", "metrics", "grid", "evaluation")
@@ -198,7 +223,7 @@ def parse_spec(data: dict[str, Any], spec_dir: str | os.PathLike[str] | None = N
         raise ConfigError("grid", "empty: name at least one parameter path, e.g. \"model.stiffness_scale\" = [0.5, 1, 2]")
     axes = []
     for path, raw in grid.items():
-        current = get_path(base, path)  # ConfigError naming the unknown part
+        current = _lookup(base, path)
         if isinstance(current, bool) or not isinstance(current, (int, float)):
             what = "a table" if isinstance(current, dict) else "a list" if isinstance(current, list) else type(current).__name__
             raise ConfigError(f"grid.{path}", f"not a numeric field (it is {what}); sweep a number")

@@ -16,10 +16,13 @@ evaluation), so resumed records always belong to the spec being run.
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import json
 import math
 import os
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -60,15 +63,37 @@ class ResultStore:
                     f"{self.root} holds a different sweep ({what} changed); use another --out or delete that folder",
                 )
         else:
-            if self.root.exists() and any(self.root.iterdir()):
+            if self.root.exists() and any(self._foreign(p) for p in self.root.iterdir()):
                 raise ConfigError("--out", f"{self.root} exists and is not a sweep folder; use another --out")
-            self.records_dir.mkdir(parents=True, exist_ok=True)
+            # The marker first: once it exists, a killed start is simply resumed.
+            atomic_write_text(marker, json.dumps({"identity": identity, "base_path": spec.base_path}, indent=1, sort_keys=True))
             if spec.source_text:
                 atomic_write_text(self.root / "spec.toml", spec.source_text)
-            atomic_write_text(marker, json.dumps({"identity": identity, "base_path": spec.base_path}, indent=1, sort_keys=True))
         self.records_dir.mkdir(parents=True, exist_ok=True)
         for stale in self.records_dir.glob(".*.tmp"):  # a write interrupted by a kill
             stale.unlink(missing_ok=True)
+
+    def _foreign(self, path: Path) -> bool:
+        """Not left by an interrupted start of a sweep (hidden temp files, empty records/)."""
+        if path.name.startswith("."):
+            return False
+        return not (path == self.records_dir and path.is_dir() and not any(path.iterdir()))
+
+    @contextlib.contextmanager
+    def lock(self) -> Iterator[None]:
+        """Hold the folder for one sweep process; the OS releases it even on SIGKILL."""
+        if self.root.exists() and not (self.root / "sweep.json").exists() and any(self._foreign(p) for p in self.root.iterdir()):
+            raise ConfigError("--out", f"{self.root} exists and is not a sweep folder; use another --out")
+        self.root.mkdir(parents=True, exist_ok=True)
+        with open(self.root / ".lock", "a+") as fh:
+            try:
+                fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise ConfigError("--out", f"{self.root} is in use by another running sweep") from None
+            try:
+                yield
+            finally:
+                fcntl.flock(fh, fcntl.LOCK_UN)
 
     def path(self, variant_id: str) -> Path:
         return self.records_dir / f"{variant_id}.json"
