@@ -95,6 +95,9 @@ def test_killed_sweep_resumes_with_every_variant_exactly_once_and_the_same_value
     assert len(failed) == 1 and failed[0]["model.stiffness_scale"] == "300.0" and failed[0]["error"].startswith("diverged")
     assert all(row["sag_mm"] == "" for row in failed)
 
+    retried = run_sweep(spec, out, workers=2, retry_failed=True, progress=False)  # only the failed one re-runs
+    assert (retried.n_skipped, retried.n_run, retried.n_failed) == (8, 1, 1)
+
 
 def test_results_folder_table_plots_and_refusals(tmp_path):
     spec_path = tmp_path / "two.toml"

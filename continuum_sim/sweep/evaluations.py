@@ -116,7 +116,7 @@ class TipDeflection(Evaluation):
     kind: ClassVar[str] = "tip_deflection"
     static: ClassVar[bool] = True
 
-    force_n: float = 0.02
+    force_n: float = 0.01  # N: about 7 % of the arm length sideways for the free backbone at scale 1
     direction: tuple[float, float, float] = (1.0, 0.0, 0.0)  # world frame
     cables: str = "free"  # free: tendons removed (pure backbone); held: open-loop hold of q_deg
     gravity: bool = False
