@@ -91,6 +91,39 @@ def _cmd_build_model(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from .sweep import load_spec, run_sweep
+    from .sweep.report import format_table
+
+    if args.workers is not None and args.workers < 1:
+        raise UsageError(f"--workers: must be >= 1 (got {args.workers})")
+    spec = load_spec(args.spec)  # every check happens here, before any work
+    out = Path(args.out) if args.out else Path("sweeps") / Path(args.spec).stem
+    try:
+        result = run_sweep(
+            spec,
+            out,
+            workers=args.workers,
+            backend=args.backend,
+            address=args.address,
+            batch=args.batch,
+            retry_failed=args.retry_failed,
+            progress=not args.quiet,
+        )
+    except KeyboardInterrupt:
+        print(f"continuum-sim sweep: interrupted; finished variants are kept in {out}/records, rerun to resume", file=sys.stderr)
+        return 130
+    if not args.quiet:
+        print(format_table(spec, result.records))
+    print(
+        f"sweep: {result.n_variants} variants ({result.n_skipped} already recorded, {result.n_run} run, "
+        f"{result.n_failed} failed; mode {result.mode}) -> {result.root}/results.csv, {len(result.plots)} plots"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="continuum-sim", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -112,6 +145,22 @@ def build_parser() -> argparse.ArgumentParser:
     build.add_argument("--out", default="models", help="output folder (default: models)")
     build.add_argument("--config", help="scenario TOML whose arm/layout/model to build (default: package defaults)")
     build.set_defaults(func=_cmd_build_model)
+
+    sweep = sub.add_parser("sweep", help="evaluate a grid of design variants; resumable (README: Parameter sweeps)")
+    sweep.add_argument("spec", metavar="SPEC.toml", help="sweep spec: [grid], [evaluation], metrics")
+    sweep.add_argument("--out", help="results folder (default: sweeps/<spec name>); rerun to resume")
+    sweep.add_argument("--workers", type=int, help="parallel workers (default: all cores; Ray: cluster CPUs)")
+    sweep.add_argument("--backend", choices=("local", "ray"), default="local", help="where variants run (default: local)")
+    sweep.add_argument("--address", help="Ray cluster address, e.g. 10.0.0.5:6379 (--backend ray; default: start a local one)")
+    sweep.add_argument(
+        "--batch",
+        choices=("auto", "on", "off"),
+        default="auto",
+        help="share one compiled model between same-structure static variants (auto: when local and static)",
+    )
+    sweep.add_argument("--retry-failed", action="store_true", help="re-run variants recorded as failed")
+    sweep.add_argument("--quiet", action="store_true", help="no progress bar or table")
+    sweep.set_defaults(func=_cmd_sweep)
     return parser
 
 

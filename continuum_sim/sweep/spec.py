@@ -1,0 +1,276 @@
+"""Sweep spec: which config fields to vary, over which values, evaluated how.
+
+A spec is a TOML file::
+
+    base = "my_scenario.toml"            # optional, relative to the spec file
+    metrics = ["sag_mm", "max_cable_tension_n"]   # optional: default all of the evaluation's
+
+    [grid]                               # cartesian product, last key varies fastest
+    "model.stiffness_scale" = {start = 0.5, stop = 16.0, num = 11, scale = "log"}
+    "arm.sections.2.hinge_thickness" = [0.0008, 0.001]
+
+    [evaluation]
+    kind = "gravity_sag"                 # gravity_sag | tip_deflection | scenario | stage
+    q_deg = [60, 0, 30, 0, 0, 0]
+
+Everything is checked here, before any simulation starts: grid paths must name numeric
+fields of the base ``ScenarioConfig``, values must be numbers of the field's type, every
+variant's config must validate, the evaluation and metrics must be known. Failures are
+one-line ``ConfigError``s naming the field.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..configio import ConfigError, get_path, load_toml, replace_path, to_dict
+from ..scenario.config import ScenarioConfig, merged
+from .evaluations import Evaluation, parse_evaluation
+
+Number = int | float
+MAX_VARIANTS = 100_000
+
+
+@dataclass(frozen=True)
+class GridAxis:
+    """One swept field: its dotted path and the values it takes, in order."""
+
+    path: str
+    values: tuple[Number, ...]
+    log: bool = False  # spaced logarithmically (plots use a log axis)
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One point of the grid: its position, parameter values and stable id."""
+
+    index: int
+    params: tuple[tuple[str, Number], ...]
+    variant_id: str
+
+    @property
+    def param_dict(self) -> dict[str, Number]:
+        return dict(self.params)
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A validated sweep: base config, grid axes, evaluation, metrics to tabulate."""
+
+    base: ScenarioConfig
+    axes: tuple[GridAxis, ...]
+    evaluation: Evaluation
+    metrics: tuple[str, ...]
+    base_path: str | None = None
+    source_text: str = ""
+
+    @property
+    def paths(self) -> tuple[str, ...]:
+        return tuple(axis.path for axis in self.axes)
+
+    @property
+    def n_variants(self) -> int:
+        return math.prod(len(axis.values) for axis in self.axes)
+
+    def variants(self) -> list[Variant]:
+        """All variants in grid order (cartesian product, last axis fastest)."""
+        out = []
+        for index, combo in enumerate(np.ndindex(*[len(a.values) for a in self.axes])):
+            params = tuple((axis.path, axis.values[i]) for axis, i in zip(self.axes, combo))
+            out.append(Variant(index, params, variant_id(params, self.evaluation)))
+        return out
+
+    def config_for(self, variant: Variant) -> ScenarioConfig:
+        """The base config with the variant's values set."""
+        return apply_params(self.base, variant.params)
+
+    def identity(self) -> dict[str, Any]:
+        """What must match for a results folder to be resumed: base, grid, evaluation."""
+        return {
+            "base": to_dict(self.base),
+            "grid": {axis.path: list(axis.values) for axis in self.axes},
+            "evaluation": self.evaluation.to_dict(),
+        }
+
+
+def variant_id(params: tuple[tuple[str, Number], ...], evaluation: Evaluation) -> str:
+    """Stable id: a hash of the parameter values and the evaluation spec."""
+    text = json.dumps({"params": [[p, v] for p, v in params], "evaluation": evaluation.to_dict()}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def apply_params(base: ScenarioConfig, params) -> ScenarioConfig:
+    config = base
+    for path, value in params:
+        config = replace_path(config, path, value)
+    return config
+
+
+# ------------------------------------------------------------------------ parsing
+def _axis_values(path: str, raw: Any, kind: type) -> tuple[tuple[Number, ...], bool]:
+    where = f"grid.{path}"
+    log = False
+    if isinstance(raw, dict):
+        allowed = {"start", "stop", "num", "scale"}
+        for key in raw:
+            if key not in allowed:
+                raise ConfigError(f"{where}.{key}", f"unknown key; allowed keys are {', '.join(sorted(allowed))}")
+        for key in ("start", "stop", "num"):
+            if key not in raw:
+                raise ConfigError(where, f"a range needs start, stop and num (missing {key})")
+        start, stop, num = raw["start"], raw["stop"], raw["num"]
+        for key, value in (("start", start), ("stop", stop)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ConfigError(f"{where}.{key}", f"must be a finite number (got {value!r})")
+        if isinstance(num, bool) or not isinstance(num, int) or not 1 <= num <= MAX_VARIANTS:
+            raise ConfigError(f"{where}.num", f"must be an integer in [1, {MAX_VARIANTS}] (got {num!r})")
+        scale = raw.get("scale", "linear")
+        if scale not in ("linear", "log"):
+            raise ConfigError(f"{where}.scale", f"must be 'linear' or 'log' (got {scale!r})")
+        if scale == "log":
+            if start <= 0 or stop <= 0:
+                raise ConfigError(where, f"a log range needs start > 0 and stop > 0 (got {start!r}, {stop!r})")
+            values = np.geomspace(float(start), float(stop), num)
+            log = True
+        else:
+            values = np.linspace(float(start), float(stop), num)
+        # 12 significant digits: geomspace's 3.999999999999999 becomes 4.0 (stable ids, clean tables)
+        raw_values: list[Any] = [float(f"{v:.12g}") for v in values]
+    elif isinstance(raw, list):
+        raw_values = raw
+    else:
+        raise ConfigError(where, f"must be a list of numbers or a table {{start, stop, num, scale}} (got {type(raw).__name__})")
+    if not raw_values:
+        raise ConfigError(where, "empty list of values: the grid would have no variants")
+    out: list[Number] = []
+    for i, value in enumerate(raw_values):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"{where}[{i}]", f"must be a number (got {type(value).__name__} {value!r})")
+        if not math.isfinite(value):
+            raise ConfigError(f"{where}[{i}]", f"must be a finite number (got {value!r})")
+        if kind is int:
+            if float(value) != round(value):
+                raise ConfigError(f"{where}[{i}]", f"{path} is an integer field (got {value!r})")
+            out.append(int(round(value)))
+        else:
+            out.append(float(value))
+    if len(set(out)) != len(out):
+        dup = next(v for v in out if out.count(v) > 1)
+        raise ConfigError(where, f"value {dup!r} appears twice: every variant must be distinct")
+    return tuple(out), log
+
+
+def _lookup(base: ScenarioConfig, path: str) -> Any:
+    """The base value at ``path``; an unknown path names the bad part and the choices there."""
+    try:
+        return get_path(base, path)
+    except ConfigError:
+        pass
+    node: Any = to_dict(base)
+    parts = path.split(".")
+    for i, part in enumerate(parts):
+        if isinstance(node, dict) and part in node:
+            node = node[part]
+        elif isinstance(node, list) and part.isdigit() and int(part) < len(node):
+            node = node[int(part)]
+        else:
+            where = ".".join(parts[:i]) or "the scenario configuration"
+            if isinstance(node, dict):
+                choices = "fields " + ", ".join(node)
+            elif isinstance(node, list):
+                choices = f"indices 0 to {len(node) - 1}"
+            else:
+                choices = "no fields: it is a value"
+            raise ConfigError(f"grid.{path}", f"unknown parameter path: {where} has no {part!r} (it has {choices})")
+    raise ConfigError(f"grid.{path}", "unknown parameter path")
+
+
+def parse_spec(data: dict[str, Any], spec_dir: str | os.PathLike[str] | None = None, source_text: str = "") -> SweepSpec:
+    """Validate a spec dict (as read from TOML) into a ``SweepSpec``; ``ConfigError`` if bad."""
+    allowed = ("base", "metrics", "grid", "evaluation")
+    for key in data:
+        if key not in allowed:
+            raise ConfigError(key, f"unknown key; allowed keys are {', '.join(allowed)}")
+
+    base_path = data.get("base")
+    if base_path is None:
+        base = ScenarioConfig.default()
+    else:
+        if not isinstance(base_path, str) or not base_path:
+            raise ConfigError("base", f"must be a path to a scenario TOML file (got {base_path!r})")
+        resolved = Path(base_path)
+        if not resolved.is_absolute() and spec_dir is not None:
+            resolved = Path(spec_dir) / resolved
+        if not resolved.is_file():
+            raise ConfigError("base", f"scenario file {str(resolved)!r} not found")
+        base = ScenarioConfig.from_toml(resolved)
+        base_path = str(resolved)
+
+    grid = data.get("grid")
+    if grid is None:
+        raise ConfigError("grid", "missing: a sweep needs a [grid] table of parameter paths")
+    if not isinstance(grid, dict):
+        raise ConfigError("grid", f"must be a table of parameter paths (got {type(grid).__name__})")
+    if not grid:
+        raise ConfigError("grid", "empty: name at least one parameter path, e.g. \"model.stiffness_scale\" = [0.5, 1, 2]")
+    axes = []
+    for path, raw in grid.items():
+        current = _lookup(base, path)
+        if isinstance(current, bool) or not isinstance(current, (int, float)):
+            what = "a table" if isinstance(current, dict) else "a list" if isinstance(current, list) else type(current).__name__
+            raise ConfigError(f"grid.{path}", f"not a numeric field (it is {what}); sweep a number")
+        values, log = _axis_values(path, raw, int if isinstance(current, int) else float)
+        axes.append(GridAxis(path, values, log))
+    n = math.prod(len(a.values) for a in axes)
+    if n > MAX_VARIANTS:
+        raise ConfigError("grid", f"{n} variants is more than the limit of {MAX_VARIANTS}")
+
+    if "evaluation" not in data:
+        raise ConfigError("evaluation", "missing: a sweep needs an [evaluation] table with a kind")
+    evaluation = parse_evaluation(data["evaluation"])
+
+    metrics_raw = data.get("metrics")
+    if metrics_raw is None:
+        metrics = evaluation.default_metrics()
+    else:
+        if not isinstance(metrics_raw, list) or not metrics_raw:
+            raise ConfigError("metrics", "must be a non-empty list of metric names")
+        for i, name in enumerate(metrics_raw):
+            if not isinstance(name, str) or not name:
+                raise ConfigError(f"metrics[{i}]", f"must be a metric name (got {name!r})")
+        known = evaluation.known_metrics()
+        for i, name in enumerate(metrics_raw):
+            if known is not None and name not in known:
+                raise ConfigError(f"metrics[{i}]", f"unknown metric {name!r} for {evaluation.kind}; known: {', '.join(known)}")
+        if len(set(metrics_raw)) != len(metrics_raw):
+            raise ConfigError("metrics", "a metric is listed twice")
+        metrics = tuple(metrics_raw)
+
+    spec = SweepSpec(base, tuple(axes), evaluation, metrics, base_path, source_text)
+    # Every variant must be a valid configuration the evaluation accepts.
+    for variant in spec.variants():
+        label = ", ".join(f"{p} = {v!r}" for p, v in variant.params)
+        try:
+            config = spec.config_for(variant)
+            evaluation.check(config)
+        except ConfigError as exc:
+            raise ConfigError(exc.field, f"{exc.message} (variant {variant.index}: {label})") from None
+    return spec
+
+
+def load_spec(path: str | os.PathLike[str]) -> SweepSpec:
+    """Read and validate a sweep spec TOML; errors name the file and the field."""
+    path = Path(path)
+    data = load_toml(path)
+    try:
+        return parse_spec(data, path.parent, path.read_text())
+    except ConfigError as exc:
+        raise exc.under(f"{path}: ") from None
