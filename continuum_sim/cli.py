@@ -86,6 +86,18 @@ def _cmd_build_model(args: argparse.Namespace) -> int:
 
         config = ScenarioConfig.from_toml(args.config)
         paths = export_models(args.out, config.arm, config.layout, config.model)
+    if not args.models_only:
+        from pathlib import Path
+
+        from .configio import atomic_write_text
+        from .scenario.config import default_scenario_toml
+
+        defaults = Path(__file__).resolve().parent / "data" / "scenario.toml"
+        text = default_scenario_toml()
+        if not defaults.exists() or defaults.read_text() != text:
+            atomic_write_text(defaults, text)
+            defaults.chmod(0o644)
+        paths.append(defaults)
     for path in paths:
         print(f"wrote {path}")
     return 0
@@ -144,6 +156,9 @@ def build_parser() -> argparse.ArgumentParser:
     build = sub.add_parser("build-model", help="regenerate the MJCF models (dual_arm.xml, arm.xml)")
     build.add_argument("--out", default="models", help="output folder (default: models)")
     build.add_argument("--config", help="scenario TOML whose arm/layout/model to build (default: package defaults)")
+    build.add_argument(
+        "--models-only", action="store_true", help="do not regenerate the shipped scenario defaults (continuum_sim/data/scenario.toml)"
+    )
     build.set_defaults(func=_cmd_build_model)
 
     sweep = sub.add_parser("sweep", help="evaluate a grid of design variants; resumable (README: Parameter sweeps)")

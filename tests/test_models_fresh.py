@@ -31,7 +31,7 @@ def test_committed_model_loads_with_plain_mujoco(name):
 
 
 def test_build_model_cli_writes_the_same_files(tmp_path, fresh, capsys):
-    assert main(["build-model", "--out", str(tmp_path)]) == 0
+    assert main(["build-model", "--out", str(tmp_path), "--models-only"]) == 0
     for name in (DUAL_ARM_FILE, ARM_FILE):
         assert (tmp_path / name).read_text() == fresh[name]
     assert "wrote" in capsys.readouterr().out
