@@ -112,10 +112,6 @@ class ToolOptions:
         return gap - self.gripper_open_gap
 
 
-def _mass_geom(body: mjcf.Element, **kwargs) -> mjcf.Element:
-    return body.add("geom", **kwargs)
-
-
 def build_grinder(
     geometry: ArmGeometry,
     options: ModelOptions,
@@ -153,8 +149,8 @@ def build_grinder(
     root.default.geom.rgba = (0.55, 0.57, 0.6, 1.0)
     root.default.geom.contype, root.default.geom.conaffinity = collision
     housing = root.worldbody.add("body", name="housing")
-    _mass_geom(
-        housing,
+    housing.add(
+        "geom",
         name="housing",
         type="cylinder",
         size=(tools.housing_radius, (housing_top - half_disk) / 2),
