@@ -7,8 +7,10 @@ targets, the same warm starts (the previous point's solution) and the same cold 
 rules, and evaluate the same forward kinematics (``ArmKernel``), so the ratio measures the
 algorithm, not the FK code. The baseline is SLSQP with numerical (2-point) gradients on
 the squared objective k1²‖ΔP‖² + k2²‖log(R_tipᵀR*)‖² with θ ∈ [0, θmax] (the nearest
-thing to the paper's MATLAB fmincon); its cold start is the straight arm plus the same
-seed-table starts until one succeeds.
+thing to the paper's MATLAB fmincon), asked for the same accuracy (ftol = (k1·1e-9 m)²);
+its cold start is the straight arm plus the best seed-table starts until one succeeds.
+The two solvers run interleaved, point by point, so machine load affects both alike;
+CPU times (process_time) are reported next to wall times.
 
 Run from the repository root:  python benchmarks/ik.py [--points 200] [--orientation full]
 Prints one JSON object. Timings are per point, medians, in milliseconds.
@@ -54,6 +56,8 @@ class SLSQPBaseline:
         self.bounds = [(0.0, b) if i % 2 == 0 else (None, None) for i, b in enumerate(geometry.max_bend.repeat(2))]
         self.options = options
         self.evaluations = 0
+        # Objective target: (k1·1e-9 m)² = 1e-16, i.e. asked for the same 1e-9 accuracy.
+        self.ftol = (options.position_weight * options.position_tolerance) ** 2
 
     def errors(self, q: np.ndarray, target: np.ndarray) -> tuple[float, float]:
         w = kin.to_bending(q).tolist()
@@ -74,19 +78,82 @@ class SLSQPBaseline:
 
     def solve(self, target: np.ndarray, q0: np.ndarray) -> tuple[np.ndarray, float, float, bool]:
         res = minimize(self.objective, q0, args=(target,), method="SLSQP", bounds=self.bounds,
-                       options={"ftol": 1e-20, "maxiter": 500})
+                       options={"ftol": self.ftol, "maxiter": 500})
         ep, eo = self.errors(res.x, target)
         ok = ep <= self.options.position_tolerance and eo <= self.options.orientation_tolerance
         return res.x, ep, eo, ok
 
 
+def _stats(wall, cpu, errs_p, errs_o, oks) -> dict:
+    return {
+        "median_ms": round(1000 * float(np.median(wall)), 4),
+        "median_cpu_ms": round(1000 * float(np.median(cpu)), 4),
+        "mean_ms": round(1000 * float(np.mean(wall)), 4),
+        "success_rate": float(np.mean(oks)),
+        "position_error_max_m": float(np.max(errs_p)),
+        "orientation_error_max_rad": float(np.max(errs_o)),
+        "position_error_median_m": float(np.median(errs_p)),
+    }
+
+
+class _Timer:
+    def __enter__(self):
+        self.w, self.c = time.perf_counter(), time.process_time()
+        return self
+
+    def __exit__(self, *exc):
+        self.wall, self.cpu = time.perf_counter() - self.w, time.process_time() - self.c
+
+
 def run(points: int, orientation: str, seed: int, baseline_cold_starts: int, skip_baseline: bool = False) -> dict:
+    """Both solvers, interleaved point by point so machine load hits both alike."""
     geometry = ArmGeometry.default()
     tool = geometry.tools.grinder_length
     options = IKOptions()
     targets, W = targets_along_path(geometry, points, seed, tool)
     spacing = np.linalg.norm(np.diff(targets[:, :3, 3], axis=0), axis=1)
     q_first = kin.from_bending(W[0])
+    solver = get_solver(geometry, orientation, "free", tool, 0.0, options)
+    seeds = solver.seed_table()[0]  # built once, not timed
+    base = SLSQPBaseline(geometry, tool, orientation, options)
+    rows = {k: {"wall": [], "cpu": [], "ep": [], "eo": [], "ok": [], "evals": []}
+            for k in ("ours_warm", "ours_cold", "base_warm", "base_cold")}
+
+    def record(key, timer, ep, eo, ok, evals=0):
+        r = rows[key]
+        r["wall"].append(timer.wall), r["cpu"].append(timer.cpu), r["ep"].append(ep), r["eo"].append(eo)
+        r["ok"].append(ok), r["evals"].append(evals)
+
+    q_ours, q_base = q_first, q_first
+    for T in targets:
+        with _Timer() as tm:
+            res = solve_ik(geometry, T, orientation, "free", q0=q_ours, tool=tool, options=options)
+        record("ours_warm", tm, res.position_error, res.orientation_error, res.success)
+        q_ours = res.q
+        with _Timer() as tm:
+            cold = solve_ik(geometry, T, orientation, "free", tool=tool, options=options)
+        record("ours_cold", tm, cold.position_error, cold.orientation_error, cold.success)
+        if skip_baseline:
+            continue
+        base.evaluations = 0
+        with _Timer() as tm:
+            q_base, e1, e2, good = base.solve(T, q_base)
+        record("base_warm", tm, e1, e2, good, base.evaluations)
+        base.evaluations = 0
+        with _Timer() as tm:
+            starts = [np.zeros(6)] + [kin.from_bending(seeds[i]) for i in solver._seed_order(T)[: baseline_cold_starts - 1]]
+            best = None
+            for q_start in starts:
+                qs, b1, b2, bgood = base.solve(T, q_start)
+                score = (options.position_weight * b1) ** 2 + (options.orientation_weight * b2) ** 2
+                if best is None or score < best[0]:
+                    best = (score, b1, b2, bgood)
+                if bgood:
+                    break
+        record("base_cold", tm, best[1], best[2], best[3], base.evaluations)
+
+    with _Timer() as tm:
+        path = solve_path(geometry, targets, q_first, orientation, "free", tool=tool, options=options)
     out: dict = {
         "targets": points,
         "orientation": orientation,
@@ -94,75 +161,34 @@ def run(points: int, orientation: str, seed: int, baseline_cold_starts: int, ski
         "tool": "grinder",
         "target_spacing_mm_median": round(float(1000 * np.median(spacing)), 3),
         "tolerances": {"position_m": options.position_tolerance, "orientation_rad": options.orientation_tolerance},
+        "timing": "per point; wall = perf_counter, cpu = process_time (less sensitive to other load)",
     }
 
-    def summarise(times, errs_p, errs_o, oks):
-        return {
-            "median_ms": round(1000 * float(np.median(times)), 4),
-            "mean_ms": round(1000 * float(np.mean(times)), 4),
-            "success_rate": float(np.mean(oks)),
-            "position_error_max_m": float(np.max(errs_p)),
-            "orientation_error_max_rad": float(np.max(errs_o)),
-            "position_error_median_m": float(np.median(errs_p)),
-        }
+    def stats(key):
+        r = rows[key]
+        d = _stats(r["wall"], r["cpu"], r["ep"], r["eo"], r["ok"])
+        if key.startswith("base"):
+            d["median_function_evaluations"] = float(np.median(r["evals"]))
+        return d
 
-    # ---- this solver: warm (previous solution), cold (no q0), and along the path.
-    get_solver(geometry, orientation, "free", tool, 0.0, options).seed_table()  # build once, not timed
-    ours = {}
-    for mode in ("warm", "cold"):
-        times, ep, eo, ok = [], [], [], []
-        q = q_first
-        for T in targets:
-            t0 = time.perf_counter()
-            res = solve_ik(geometry, T, orientation, "free", q0=q if mode == "warm" else None, tool=tool, options=options)
-            times.append(time.perf_counter() - t0)
-            ep.append(res.position_error), eo.append(res.orientation_error), ok.append(res.success)
-            q = res.q
-        ours[mode] = summarise(times, ep, eo, ok)
-    t0 = time.perf_counter()
-    path = solve_path(geometry, targets, q_first, orientation, "free", tool=tool, options=options)
-    elapsed = time.perf_counter() - t0
-    ours["path"] = {
-        "per_point_ms": round(1000 * elapsed / max(len(path.q), 1), 4),
-        "success": bool(path.success),
-        "solved_points": int(len(path.q)),
-        "position_error_max_m": float(path.position_error.max()),
-        "orientation_error_max_rad": float(path.orientation_error.max()),
+    out["this_solver"] = {
+        "warm": stats("ours_warm"),
+        "cold": stats("ours_cold"),
+        "path": {
+            "per_point_ms": round(1000 * tm.wall / max(len(path.q), 1), 4),
+            "per_point_cpu_ms": round(1000 * tm.cpu / max(len(path.q), 1), 4),
+            "success": bool(path.success),
+            "solved_points": int(len(path.q)),
+            "position_error_max_m": float(path.position_error.max()),
+            "orientation_error_max_rad": float(path.orientation_error.max()),
+        },
     }
-    out["this_solver"] = ours
-
     if skip_baseline:
         return out
-    # ---- baseline
-    base = SLSQPBaseline(geometry, tool, orientation, options)
-    solver = get_solver(geometry, orientation, "free", tool, 0.0, options)
-    seeds = solver.seed_table()[0]
-    theirs = {}
-    for mode in ("warm", "cold"):
-        times, ep, eo, ok, evals = [], [], [], [], []
-        q = q_first
-        for T in targets:
-            base.evaluations = 0
-            t0 = time.perf_counter()
-            if mode == "warm":
-                q, e1, e2, good = base.solve(T, q)
-            else:
-                starts = [np.zeros(6)] + [kin.from_bending(seeds[i]) for i in solver._seed_order(T)[: baseline_cold_starts - 1]]
-                best = None
-                for q_start in starts:
-                    qs, e1, e2, good = base.solve(T, q_start)
-                    score = (options.position_weight * e1) ** 2 + (options.orientation_weight * e2) ** 2
-                    if best is None or score < best[0]:
-                        best = (score, qs, e1, e2, good)
-                    if good:
-                        break
-                _, q, e1, e2, good = best
-            times.append(time.perf_counter() - t0)
-            ep.append(e1), eo.append(e2), ok.append(good), evals.append(base.evaluations)
-        theirs[mode] = summarise(times, ep, eo, ok)
-        theirs[mode]["median_function_evaluations"] = float(np.median(evals))
-    out["baseline_slsqp"] = theirs
+    out["baseline_slsqp"] = {"warm": stats("base_warm"), "cold": stats("base_cold")}
+    ours, theirs = out["this_solver"], out["baseline_slsqp"]
     out["speed_ratio_warm"] = round(theirs["warm"]["median_ms"] / ours["warm"]["median_ms"], 2)
+    out["speed_ratio_warm_cpu"] = round(theirs["warm"]["median_cpu_ms"] / ours["warm"]["median_cpu_ms"], 2)
     out["speed_ratio_cold"] = round(theirs["cold"]["median_ms"] / ours["cold"]["median_ms"], 2)
     out["goal"] = {
         "warm_median_ms_le_0.5": ours["warm"]["median_ms"] <= 0.5,

@@ -31,10 +31,8 @@ from . import kinematics as kin
 from .configio import ConfigError, require_positive, require_range
 from .geometry import ArmGeometry
 
-try:  # LAPACK's Cholesky solve: a tenth of np.linalg.solve's call overhead on 6×6
-    from scipy.linalg.lapack import dposv as _dposv
-except ImportError:  # pragma: no cover
-    _dposv = None
+# LAPACK's Cholesky routines: a tenth of np.linalg.solve's call overhead on 6×6.
+from scipy.linalg.lapack import dposv as _dposv, dpotrf as _dpotrf, dpotrs as _dpotrs
 
 Array = NDArray[np.float64]
 Orientation = Literal["full", "axis"]
@@ -219,9 +217,14 @@ class IKSolver:
         self._cpsi, self._spsi = math.cos(self.plane_angle), math.sin(self.plane_angle)
         self.reach = geometry.length + self.tool_length
         self._seeds: tuple[Array, Array, Array] | None = None
+        # The last configuration's FK and Jacobian (they do not depend on the target), and
+        # the last solution as (q, x): a solve warm-started from the previous solution
+        # reuses both instead of recomputing them. Not thread-safe; one solver per thread.
+        self._fk_cache: tuple | None = None
+        self._last: tuple[Array, list[float]] | None = None
         k1, k2 = self.options.position_weight, self.options.orientation_weight
         self._row_weights = np.array([[k1], [k1], [k1], [k2], [k2], [k2]])
-        self._eye = np.eye(self.n_vars)
+        self._diag = (np.arange(self.n_vars), np.arange(self.n_vars))
 
     # ---------------------------------------------------------------- variables
     def to_w(self, x) -> list[float]:
@@ -251,9 +254,14 @@ class IKSolver:
 
     def q_from_x(self, x) -> Array:
         """(θ, φ) pairs with θ >= 0; planar: φ exactly ψ or ψ + π."""
-        x = np.asarray(x, dtype=float)
         if self.phase == "free":
-            return kin.from_bending(x)
+            v = [float(a) for a in x]
+            out = []
+            for k in range(self.S):
+                u, w = v[2 * k], v[2 * k + 1]
+                out += [math.hypot(u, w), math.atan2(w, u)]
+            return np.array(out)
+        x = np.asarray(x, dtype=float)
         q = np.empty(2 * self.S)
         q[0::2] = np.abs(x)
         q[1::2] = np.where(x >= 0.0, _wrap(self.plane_angle), _wrap(self.plane_angle + math.pi))
@@ -281,7 +289,14 @@ class IKSolver:
     def evaluate(self, x, tgt, derivatives: bool = True):
         """``(r, J, position_error, orientation_error, R, p)`` at solver variables ``x``."""
         k1, k2 = self.options.position_weight, self.options.orientation_weight
-        R, p, Jw = self.kernel.pose_jacobian(self.to_w(x), derivatives)
+        w = self.to_w(x)
+        cached = self._fk_cache
+        if cached is not None and cached[0] == w:
+            R, p, Jw = cached[1]
+        else:
+            R, p, Jw = self.kernel.pose_jacobian(w, derivatives)
+            if derivatives:
+                self._fk_cache = (w, (R, p, Jw))
         Px, Py, Pz, Rt = tgt
         dx, dy, dz = p[0] - Px, p[1] - Py, p[2] - Pz
         ep = math.sqrt(dx * dx + dy * dy + dz * dz)
@@ -386,48 +401,58 @@ class IKSolver:
         for one small problem at a time: few numpy calls per iteration.
         """
         opts = self.options
-        stop_p = 1e-3 * opts.position_tolerance
-        stop_o = 1e-3 * opts.orientation_tolerance
+        stop_p = 1e-2 * opts.position_tolerance  # quadratic convergence: one step past 1e-2·tol is ~1e-15
+        stop_o = 1e-2 * opts.orientation_tolerance
         x = self.project([float(v) for v in x0])
         r, J, ep, eo, R, p = self.evaluate(x, tgt)
         cost = sum(v * v for v in r)
         n = self.n_vars
+        S = self.S
         planar = self.phase == "planar"
         dposv = _dposv
+        diag = self._diag
         lam = -1.0
         nu = 2.0
+        scale = floor = 0.0
         its = 0
         while its < max_iterations and not (ep <= stop_p and eo <= stop_o):
             its += 1
             JT = J.T
             A = JT.dot(J)
             g = JT.dot(r)
-            scale = float(A.trace()) / n
             if lam < 0.0:
+                scale = float(A.trace()) / n
                 lam = self.TAU * scale
-            floor = 1e-12 * scale + 1e-300
-            A.flat[:: n + 1] += lam + floor
+                floor = 1e-12 * scale + 1e-300
+            damping = lam + floor
+            A[diag] += damping
             _, sol, info = dposv(A, g)
             if info != 0:
                 break
-            delta = (-sol).tolist()
+            delta = sol.tolist()  # the step is -sol
             # Trust region: no section's bending coordinates move more than max_step.
             if planar:
                 biggest = max(abs(d) for d in delta)
             else:
-                biggest = math.sqrt(max(delta[2 * k] ** 2 + delta[2 * k + 1] ** 2 for k in range(self.S)))
+                biggest = math.sqrt(max(delta[2 * k] ** 2 + delta[2 * k + 1] ** 2 for k in range(S)))
             if biggest < 1e-16:
                 break
-            if biggest > max_step:
+            clipped = biggest > max_step
+            if clipped:
                 f = max_step / biggest
                 delta = [d * f for d in delta]
-            x_new = self.project([xi + di for xi, di in zip(x, delta)])
+            x_new = self.project([xi - di for xi, di in zip(x, delta)])
             r_new, J_new, ep_new, eo_new, R_new, p_new = self.evaluate(x_new, tgt)
             cost_new = sum(v * v for v in r_new)
             if cost_new < cost:
-                # Gain ratio: actual decrease over the decrease of the linear model -2gᵀδ - |Jδ|².
-                Jd = J.dot(delta)
-                predicted = -2.0 * float(g.dot(delta)) - float(Jd.dot(Jd))
+                # Gain ratio: actual decrease over the linear model's. For the unclipped
+                # step -sol of (A + λI) sol = g the model decrease is gᵀsol + λ|sol|².
+                if clipped:
+                    Jd = J.dot(delta)
+                    predicted = 2.0 * float(g.dot(delta)) - float(Jd.dot(Jd))
+                else:
+                    gl = g.tolist()
+                    predicted = sum(a * b for a, b in zip(gl, delta)) + damping * sum(d * d for d in delta)
                 rho = (cost - cost_new) / predicted if predicted > 0.0 else 1.0
                 x, r, J, ep, eo, R, p, cost = x_new, r_new, J_new, ep_new, eo_new, R_new, p_new, cost_new
                 lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
@@ -438,6 +463,57 @@ class IKSolver:
                 if lam > 1e10 * scale:
                     break
         return x, ep, eo, its, R, p
+
+    CHORD_ITERATIONS = 8
+    CHORD_MIN_GAIN = 0.3  # a chord step must shrink the residual norm at least this much
+
+    def _chord(self, x0, tgt, max_step: float):
+        """Warm-start fast path: Newton's chord method (Jacobian frozen at the start).
+
+        From a nearby start the frozen Jacobian is accurate to O(distance), so each step
+        gains about as many digits as the start was close, at the price of an FK without
+        derivatives (~3× cheaper than FK with the Jacobian) and a triangular solve.
+        Returns ``(x, r, J, ep, eo, R, p, its, converged)``; when a step does not shrink the
+        residual by ``CHORD_MIN_GAIN`` the caller continues with full LM from the result.
+        """
+        opts = self.options
+        stop_p = 1e-2 * opts.position_tolerance
+        stop_o = 1e-2 * opts.orientation_tolerance
+        x = self.project([float(v) for v in x0])
+        r, J, ep, eo, R, p = self.evaluate(x, tgt)
+        its = 0
+        if ep <= stop_p and eo <= stop_o:
+            return x, r, J, ep, eo, R, p, its, True
+        JT = J.T
+        A = JT.dot(J)
+        scale = float(A.trace()) / self.n_vars
+        A[self._diag] += 1e-12 * scale + 1e-300
+        c, info = _dpotrf(A)
+        if info != 0:
+            return x, r, J, ep, eo, R, p, its, False
+        norm = math.sqrt(sum(v * v for v in r))
+        J0 = J
+        while its < self.CHORD_ITERATIONS:
+            its += 1
+            step, info = _dpotrs(c, JT.dot(r))
+            if info != 0:
+                break
+            delta = step.tolist()
+            if max(abs(d) for d in delta) > max_step:
+                break
+            x_new = self.project([xi - di for xi, di in zip(x, delta)])
+            r_new, _, ep_new, eo_new, R_new, p_new = self.evaluate(x_new, tgt, derivatives=False)
+            norm_new = math.sqrt(sum(v * v for v in r_new))
+            if norm_new > self.CHORD_MIN_GAIN * norm:
+                if norm_new < norm:
+                    x, r, ep, eo, R, p, norm = x_new, r_new, ep_new, eo_new, R_new, p_new, norm_new
+                    J0 = None  # J no longer belongs to x
+                break
+            x, r, ep, eo, R, p, norm = x_new, r_new, ep_new, eo_new, R_new, p_new, norm_new
+            J0 = None
+            if ep <= stop_p and eo <= stop_o:
+                return x, r, None, ep, eo, R, p, its, True
+        return x, r, J0, ep, eo, R, p, its, False
 
     def _ok(self, ep: float, eo: float) -> bool:
         return ep <= self.options.position_tolerance and eo <= self.options.orientation_tolerance
@@ -496,8 +572,11 @@ class IKSolver:
         total = 0
         best = None
         if x0 is not None:
-            x, ep, eo, its, R, p = self._lm(x0, tgt, iters, step)
+            x, _, _, ep, eo, R, p, its, done = self._chord(x0, tgt, step)
             total += its
+            if not done:
+                x, ep, eo, its, R, p = self._lm(x, tgt, max(iters - its, 1), step)
+                total += its
             if self._ok(ep, eo):
                 return x, ep, eo, total, True, "converged (warm start)", R, p
             best = (self._weighted(ep, eo), x, ep, eo, R, p)
@@ -548,7 +627,7 @@ def _validate_q(geometry: ArmGeometry, q: ArrayLike, name: str = "q0") -> Array:
     n = 2 * geometry.n_sections
     if q.shape != (n,):
         raise ValueError(f"{name}: must have {n} entries (θ, φ per section), got shape {q.shape}")
-    if not np.all(np.isfinite(q)):
+    if not all(map(math.isfinite, q.tolist())):
         raise ValueError(f"{name}: contains NaN or infinite values")
     return q
 
@@ -588,16 +667,20 @@ def solve_ik(
     """
     target = validate_pose(target)
     solver = get_solver(geometry, orientation, phase, tool, plane_angle, options)
-    x0 = None if q0 is None else solver.x_from_q(_validate_q(geometry, q0))
+    x0 = None
+    if q0 is not None:
+        q0 = _validate_q(geometry, q0)
+        last = solver._last
+        x0 = last[1] if last is not None and np.array_equal(last[0], q0) else solver.x_from_q(q0)
     arm_target = _to_arm_frame(target, base)
     x, ep, eo, its, ok, msg, R, p = solver.solve(arm_target, x0, fallback=fallback)
-    pose = np.eye(4)
-    pose[:3, :3] = np.array(R).reshape(3, 3)
-    pose[:3, 3] = p
+    q = solver.q_from_x(x)
+    solver._last = (q, x)
+    pose = np.array([R[0], R[1], R[2], p[0], R[3], R[4], R[5], p[1], R[6], R[7], R[8], p[2], 0.0, 0.0, 0.0, 1.0]).reshape(4, 4)
     if base is not None:
         pose = np.asarray(base, dtype=float) @ pose
     return IKResult(
-        q=solver.q_from_x(x),
+        q=q.copy(),
         w=np.array(solver.to_w(x)),
         pose=pose,
         position_error=ep,
@@ -751,20 +834,36 @@ def solve_path(
     trust = max(2.0 * limits.max_dtheta, 1e-3)
 
     rows: list[tuple] = []
-    state = {"x": x_prev, "q": q_prev}
+    # x, q: the last solution; x_prev, s_prev, s: the one before and the path positions,
+    # for a first-order predictor of the next start (the toolpath is smooth).
+    state = {"x": x_prev, "q": q_prev, "x_prev": None, "s": None, "s_prev": None}
 
-    def attempt(T: Array):
-        x, ep, eo, its, ok, msg, _, _ = solver.solve(T, state["x"], fallback=False, max_step=trust)
+    def attempt(T: Array, start) -> tuple:
+        x, ep, eo, its, ok, msg, _, _ = solver.solve(T, start, fallback=False, max_step=trust)
         q = unwrap_phases(solver.q_from_x(x), state["q"]) if phase == "free" else solver.q_from_x(x)
         if phase == "planar":
             q = _planar_phases(q, state["q"])
         bad = [] if not ok else step_violations(state["q"], q, limits)
         return x, q, ep, eo, its, ok, msg, bad
 
+    def predicted(s_b: float):
+        # Only between toolpath points (not from q_start, which may be far: continuation).
+        if state["x_prev"] is None or state["s_prev"] is None or state["s_prev"] < 0.0 or state["s"] <= state["s_prev"]:
+            return None
+        ratio = (s_b - state["s"]) / (state["s"] - state["s_prev"])
+        if not 0.0 < ratio <= 2.0:
+            return None
+        return [a + ratio * (a - b) for a, b in zip(state["x"], state["x_prev"])]
+
     def follow(A: Array, B: Array, s_a: float, s_b: float, depth: int) -> str | None:
-        x, q, ep, eo, its, ok, msg, bad = attempt(B)
+        guess = predicted(s_b)
+        result = attempt(B, guess) if guess is not None else None
+        if result is None or not result[5] or result[7]:
+            result = attempt(B, state["x"])
+        x, q, ep, eo, its, ok, msg, bad = result
         if ok and not bad:
-            state["x"], state["q"] = x, q
+            state["x_prev"], state["s_prev"] = state["x"], state["s"]
+            state["x"], state["q"], state["s"] = x, q, s_b
             rows.append((B, q, ep, eo, its, s_b))
             return None
         if depth >= limits.max_subdivisions:

@@ -12,6 +12,15 @@ corner_y + sample_y]``, cut off by an L-shaped kerf: from the plate's front edge
 side edge (x = corner_x). The grinder (left arm) cuts from below with its spindle
 vertical (the plate normal); the gripper (right arm) holds the corner from the side,
 its jaws closing across the plate thickness.
+
+Why these numbers (checked with ``continuum-sim workspace`` and the IK): with the
+spindle vertical, the grinder's tool point can only be at heights in a ~6 cm band that
+falls with the distance from its base (0.54-0.58 m at 0.1 m, 0.44-0.51 m at 0.25 m), so
+the kerf sits high (plate top at 0.54 m) and 0.09-0.19 m from the left arm's axis. A
+horizontal gripper tool needs ~90° of total bending, which keeps its tool point below
+~0.47 m near its base; at 0.535 m it reaches the side edge only with its tool axis
+tilted 30° above horizontal (``GraspLayout.tilt_deg``). The arms' straight poses stay
+clear of the plate (corner at y = 0.05 m, x = 0.05 m).
 """
 
 from __future__ import annotations
