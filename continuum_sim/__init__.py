@@ -7,6 +7,7 @@ toolpaths, a generated MuJoCo model, and the collaborative sample-removal task.
 
 from .configio import ConfigError
 from .geometry import ArmGeometry, Material, SectionGeometry, ToolGeometry
+from .ik import IKOptions, IKResult, StepLimits, solve_ik, solve_path
 from .kinematics import (
     cable_length_changes,
     cable_lengths,
@@ -22,8 +23,11 @@ from .kinematics import (
 __all__ = [
     "ArmGeometry",
     "ConfigError",
+    "IKOptions",
+    "IKResult",
     "Material",
     "SectionGeometry",
+    "StepLimits",
     "ToolGeometry",
     "cable_length_changes",
     "cable_lengths",
@@ -32,6 +36,8 @@ __all__ = [
     "forward_kinematics",
     "jacobian",
     "motor_angles",
+    "solve_ik",
+    "solve_path",
     "straight_cable_lengths",
     "tool_centre_pose",
 ]

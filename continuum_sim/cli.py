@@ -136,6 +136,184 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def _load_layout(path: str | None):
+    from .configio import from_dict, load_toml
+    from .layout import TaskLayout
+
+    if path is None:
+        return TaskLayout()
+    try:
+        return from_dict(TaskLayout, load_toml(path))
+    except ConfigError as exc:
+        raise exc.under(f"{path}: ") from None
+
+
+def _load_plan_config(path: str | None):
+    from .configio import from_dict, load_toml
+    from .toolpath import PlanConfig
+
+    if path is None:
+        return PlanConfig()
+    try:
+        return from_dict(PlanConfig, load_toml(path))
+    except ConfigError as exc:
+        raise exc.under(f"{path}: ") from None
+
+
+def _target_from_args(args: argparse.Namespace) -> np.ndarray:
+    from . import kinematics as kin
+
+    if args.matrix is not None:
+        try:
+            T = np.array(json.loads(args.matrix), dtype=float)
+        except (ValueError, TypeError) as exc:
+            raise UsageError(f"--matrix: must be a JSON 4x4 list of numbers ({exc})") from None
+        return T
+    if args.position is None:
+        raise UsageError("give the target as --position X Y Z [--rotvec RX RY RZ | --zaxis ZX ZY ZZ] or --matrix JSON")
+    T = np.eye(4)
+    T[:3, 3] = args.position
+    if args.rotvec is not None and args.zaxis is not None:
+        raise UsageError("--rotvec and --zaxis are exclusive")
+    if args.rotvec is not None:
+        rv = np.array(args.rotvec, dtype=float)
+        T[:3, :3] = kin.exp_so3(np.radians(rv) if args.deg else rv)
+    elif args.zaxis is not None:
+        z = np.array(args.zaxis, dtype=float)
+        n = np.linalg.norm(z)
+        if not np.isfinite(n) or n < 1e-12:
+            raise UsageError("--zaxis: must be a finite non-zero vector")
+        z = z / n
+        helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        x = helper - (helper @ z) * z
+        x /= np.linalg.norm(x)
+        T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    return T
+
+
+def _cmd_ik(args: argparse.Namespace) -> int:
+    from .ik import IKOptions, solve_ik
+
+    geometry = _load_geometry(args.config)
+    target = _target_from_args(args)
+    base = None
+    tool: str | float = args.tool
+    if args.arm is not None:
+        mount = _load_layout(args.layout).mount(args.arm)
+        base = mount.base_transform()
+        if tool == "auto":
+            tool = mount.tool
+    if tool == "auto":
+        tool = "none"
+    if tool not in ("none", "grinder", "gripper"):
+        try:
+            tool = float(tool)
+        except ValueError:
+            raise UsageError(f"--tool: must be none, grinder, gripper or a length in metres (got {tool!r})") from None
+    q0 = None
+    if args.q0 is not None:
+        q0 = np.radians(args.q0) if args.deg else np.array(args.q0, dtype=float)
+    options = IKOptions(position_weight=args.k1, orientation_weight=args.k2, position_tolerance=args.tol,
+                        orientation_tolerance=args.tol)
+    try:
+        res = solve_ik(geometry, target, args.orientation, args.phase, q0, tool=tool, base=base, options=options)
+    except ValueError as exc:
+        if isinstance(exc, ConfigError):
+            raise
+        raise UsageError(str(exc)) from None
+    out = {"target": target.tolist(), "frame": "world" if base is not None else "arm base",
+           "tool": tool, "orientation": args.orientation, "phase": args.phase, **res.to_dict()}
+    print(json.dumps(out, indent=2))
+    if not res.success:
+        print(f"continuum-sim ik: {res.message}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _cmd_plan(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from .configio import atomic_write_text, save_toml
+    from .plotting_ik import plot_plan_overview, plot_plan_timeseries, plot_shape_parameters
+    from .toolpath import arm_clearance, plan_task, save_plan, solve_planar_demo
+
+    geometry = _load_geometry(args.config)
+    layout = _load_layout(args.layout)
+    cfg = _load_plan_config(args.plan)
+    if args.progress:
+        import dataclasses
+
+        cfg = dataclasses.replace(cfg, progress=True)
+    plan = plan_task(geometry, layout, cfg)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    save_plan(plan, out / "plan.npz")
+    save_toml(layout, out / "layout.toml")
+    save_toml(cfg, out / "plan_config.toml")
+    report = {"metrics": plan.metrics}
+    if not args.no_plots:
+        wp = plan.waypoints["left/cutting"]
+        plot_shape_parameters(wp["q"], wp["position_error"], wp["orientation_error"],
+                              "grinder cutting path, free phase", out / "fig9_grinder_cutting.png")
+        demo = solve_planar_demo(geometry, layout, cfg)
+        for phase, fig in (("free", "fig9_planar_demo_free.png"), ("planar", "fig11_planar_demo_planar.png")):
+            sol = demo[phase]
+            plot_shape_parameters(sol.q, sol.position_error, sol.orientation_error,
+                                  f"in-plane demo path, {phase} phase", out / fig)
+            report[f"planar_demo_{phase}"] = {
+                "success": sol.success,
+                "points": int(len(sol.q)),
+                "position_error_max_m": float(sol.position_error.max()),
+                "orientation_error_max_rad": float(sol.orientation_error.max()),
+                "max_dtheta_deg": float(np.degrees(np.abs(np.diff(sol.q[:, 0::2], axis=0)).max())),
+            }
+        plot_plan_overview(plan, geometry, layout, out / "plan_overview.png")
+        clearance = arm_clearance(geometry, layout, cfg, plan.q_left, plan.q_right)
+        plot_plan_timeseries(plan, clearance, out / "plan_timeseries.png")
+    atomic_write_text(out / "plan_report.json", json.dumps(report, indent=2))
+    m = plan.metrics
+    print(f"plan: {m['duration_s']:.2f} s, {m['samples']} samples at {cfg.sample_rate_hz:g} Hz; "
+          f"min arm clearance {1000 * m['min_arm_clearance_m']:.1f} mm ({m['min_arm_clearance_stage']}); "
+          f"cut path deviation max {1e6 * m['cut_path_max_deviation_m']:.1f} um; "
+          f"IK error max {m['waypoint_position_error_max_m']:.1e} m")
+    print(f"wrote {out}/plan.npz, plan_report.json" + ("" if args.no_plots else " and plots"))
+    return 0
+
+
+def _cmd_workspace(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from .configio import atomic_write_text
+    from .toolpath import gripper_poses, grinder_poses
+    from .workspace import WorkspaceConfig, check_poses, compute_workspace, plot_workspace
+
+    geometry = _load_geometry(args.config)
+    layout = _load_layout(args.layout)
+    cfg = _load_plan_config(args.plan)
+    ws_cfg = WorkspaceConfig(samples=args.samples, voxel=args.voxel, point=args.point, seed=args.seed)
+    ws = compute_workspace(geometry, layout, ws_cfg)
+    gp, hp = grinder_poses(layout, cfg), gripper_poses(layout, cfg)
+    summary = ws.summary()
+    task = {}
+    for arm, poses, mode in (("left", gp, "axis"), ("right", hp, "full")):
+        pts = np.array([p[:3, 3] for p in poses.values()])
+        inside = ws.arm(arm).contains(pts, dilate=1)
+        task[arm] = {name: bool(v) for name, v in zip(poses, inside)}
+    summary["task_positions_inside_sampled_workspace"] = task
+    # The authority on reachability (position and orientation): IK; raises naming the first failure.
+    check_poses(geometry, layout, "left", list(gp.items()), "axis", cfg.grinder_phase, cfg.ik, ws)
+    check_poses(geometry, layout, "right", list(hp.items()), "full", cfg.gripper_phase, cfg.ik, ws)
+    summary["task_poses_reachable"] = True
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    points = {"grinder key poses": np.array([p[:3, 3] for p in gp.values()]),
+              "gripper key poses": np.array([p[:3, 3] for p in hp.values()])}
+    plot_workspace(ws, out / "workspace.png", layout, points, section_y=args.section_y)
+    atomic_write_text(out / "workspace.json", json.dumps(summary, indent=2))
+    print(json.dumps(summary, indent=2))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="continuum-sim", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -146,6 +324,45 @@ def build_parser() -> argparse.ArgumentParser:
     fk.add_argument("--config", help="arm geometry TOML file")
     fk.add_argument("--json", action="store_true", help="print JSON")
     fk.set_defaults(func=_cmd_fk)
+
+    ik = sub.add_parser("ik", help="inverse kinematics of one pose (JSON out; exit 1 if unreachable)")
+    ik.add_argument("--position", nargs=3, type=float, metavar=("X", "Y", "Z"), help="target position, metres")
+    ik.add_argument("--rotvec", nargs=3, type=float, metavar=("RX", "RY", "RZ"), help="target rotation vector (rad; deg with --deg)")
+    ik.add_argument("--zaxis", nargs=3, type=float, metavar=("ZX", "ZY", "ZZ"), help="target tool axis (for --orientation axis)")
+    ik.add_argument("--matrix", help="target as a JSON 4x4 homogeneous matrix")
+    ik.add_argument("--orientation", choices=["full", "axis"], default="full")
+    ik.add_argument("--phase", choices=["free", "planar"], default="free")
+    ik.add_argument("--tool", default="auto", help="none, grinder, gripper or a length in m (default: the arm's tool with --arm, else none)")
+    ik.add_argument("--arm", choices=["left", "right"], help="target in the world frame of this arm's task mount")
+    ik.add_argument("--q0", nargs=6, type=float, metavar="Q", help="warm start θ0 φ0 θ1 φ1 θ2 φ2")
+    ik.add_argument("--deg", action="store_true", help="--rotvec and --q0 in degrees")
+    ik.add_argument("--k1", type=float, default=10.0, help="position weight, 1/m (paper eq. 8)")
+    ik.add_argument("--k2", type=float, default=1.0, help="orientation weight, 1/rad")
+    ik.add_argument("--tol", type=float, default=1e-9, help="success tolerance, m and rad")
+    ik.add_argument("--config", help="arm geometry TOML file")
+    ik.add_argument("--layout", help="task layout TOML file (with --arm)")
+    ik.set_defaults(func=_cmd_ik)
+
+    plan = sub.add_parser("plan", help="plan the sample-removal task: timed dual-arm plan, metrics and plots")
+    plan.add_argument("--out", default="runs/plan", help="output folder (default: runs/plan)")
+    plan.add_argument("--config", help="arm geometry TOML file")
+    plan.add_argument("--layout", help="task layout TOML file")
+    plan.add_argument("--plan", help="plan configuration TOML file")
+    plan.add_argument("--no-plots", action="store_true")
+    plan.add_argument("--progress", action="store_true", help="progress bars")
+    plan.set_defaults(func=_cmd_plan)
+
+    ws = sub.add_parser("workspace", help="cooperative workspace of both arms; checks the task lies inside")
+    ws.add_argument("--out", default="runs/workspace", help="output folder (default: runs/workspace)")
+    ws.add_argument("--samples", type=int, default=200_000, help="configurations per arm")
+    ws.add_argument("--voxel", type=float, default=0.01, help="voxel edge, m")
+    ws.add_argument("--point", choices=["tcp", "tip"], default="tcp")
+    ws.add_argument("--seed", type=int, default=0)
+    ws.add_argument("--section-y", type=float, default=0.0, help="y of the section view, m")
+    ws.add_argument("--config", help="arm geometry TOML file")
+    ws.add_argument("--layout", help="task layout TOML file")
+    ws.add_argument("--plan", help="plan configuration TOML file")
+    ws.set_defaults(func=_cmd_workspace)
 
     run = sub.add_parser("run", help="the main job: run the sample-removal scenario, write a run folder")
     run.add_argument("--config", help="configuration TOML file")

@@ -12,6 +12,15 @@ corner_y + sample_y]``, cut off by an L-shaped kerf: from the plate's front edge
 side edge (x = corner_x). The grinder (left arm) cuts from below with its spindle
 vertical (the plate normal); the gripper (right arm) holds the corner from the side,
 its jaws closing across the plate thickness.
+
+Why these numbers (checked with ``continuum-sim workspace`` and the IK): with the
+spindle vertical, the grinder's tool point can only be at heights in a ~6 cm band that
+falls with the distance from its base (0.54-0.58 m at 0.1 m, 0.44-0.51 m at 0.25 m), so
+the kerf sits high (plate top at 0.54 m) and 0.09-0.19 m from the left arm's axis. A
+horizontal gripper tool needs ~90° of total bending, which keeps its tool point below
+~0.47 m near its base; at 0.535 m it reaches the side edge only with its tool axis
+tilted 30° above horizontal (``GraspLayout.tilt_deg``). The arms' straight poses stay
+clear of the plate (corner at y = 0.05 m, x = 0.05 m).
 """
 
 from __future__ import annotations
@@ -47,9 +56,9 @@ class PlateLayout:
     """The foam plate, its sample corner and the kerf (metres)."""
 
     size: tuple[float, float, float] = (0.200, 0.150, 0.010)  # x, y, thickness
-    corner_x: float = 0.030  # the free corner (max x, min y) of the plate
-    corner_y: float = 0.030
-    top_z: float = 0.460  # height of the plate's top face
+    corner_x: float = 0.050  # the free corner (max x, min y) of the plate
+    corner_y: float = 0.050
+    top_z: float = 0.540  # height of the plate's top face
     sample_x: float = 0.050  # sample extent from the corner along −x
     sample_y: float = 0.050  # … and along +y
     kerf_width: float = 0.010  # width of the cut (the cutter diameter)
@@ -107,6 +116,33 @@ class PlateLayout:
 
 
 @dataclass(frozen=True)
+class GraspLayout:
+    """Where and how the gripper holds the sample: on the side edge (x = corner_x).
+
+    The jaws close along the tool x axis; the tool z points at the edge (world −x). The
+    ideal is tool z horizontal and x vertical; with the default arm mounts the right arm
+    cannot bend 90° that high up, so the approach is tilted: tool z points ``tilt_deg``
+    above the horizontal (coming from below) and the jaws close ``tilt_deg`` off vertical.
+    """
+
+    tilt_deg: float = 30.0
+    depth: float = 0.012  # TCP (pad centre) this far inside the side edge
+    edge_offset: float = 0.018  # TCP this far along +y from the plate's front edge
+
+    def __post_init__(self) -> None:
+        require_range("tilt_deg", self.tilt_deg, -60.0, 60.0, low_inclusive=True)
+        require_range("depth", self.depth, 0.0, 0.1)
+        require_range("edge_offset", self.edge_offset, 0.0, 1.0)
+
+    def rotation(self) -> np.ndarray:
+        """World rotation of the gripper tool frame at the grasp (columns x, y, z)."""
+        t = np.radians(self.tilt_deg)
+        z = np.array([-np.cos(t), 0.0, np.sin(t)])
+        x = np.array([np.sin(t), 0.0, np.cos(t)])
+        return np.column_stack([x, np.cross(z, x), z])
+
+
+@dataclass(frozen=True)
 class TaskLayout:
     """Both arm mounts, the plate, and the clamp post that holds the plate's far end."""
 
@@ -115,6 +151,7 @@ class TaskLayout:
     plate: PlateLayout = field(default_factory=PlateLayout)
     pack_size: tuple[float, float, float] = (0.36, 0.16, 0.12)  # actuation pack box below z = 0
     clamp_length: float = 0.040  # clamped strip along the plate's far x edge
+    grasp: GraspLayout = field(default_factory=GraspLayout)
 
     def __post_init__(self) -> None:
         if self.left.tool != "grinder" or self.right.tool != "gripper":
@@ -122,6 +159,22 @@ class TaskLayout:
         for i, value in enumerate(self.pack_size):
             require_range(f"pack_size[{i}]", value, 0.0, 5.0)
         require_range("clamp_length", self.clamp_length, 0.0, self.plate.size[0] - self.plate.sample_x)
+        if self.grasp.edge_offset >= self.plate.sample_y:
+            raise ConfigError(
+                "grasp.edge_offset",
+                f"must satisfy 0 < edge_offset < plate.sample_y = {self.plate.sample_y:g} (the jaws hold the sample; "
+                f"got {self.grasp.edge_offset:g})",
+            )
+        if self.grasp.depth >= self.plate.sample_x:
+            raise ConfigError("grasp.depth", f"must satisfy 0 < depth < plate.sample_x = {self.plate.sample_x:g} (got {self.grasp.depth:g})")
+
+    def grasp_pose(self) -> np.ndarray:
+        """World pose of the gripper TCP holding the sample (4, 4)."""
+        T = np.eye(4)
+        T[:3, :3] = self.grasp.rotation()
+        plate = self.plate
+        T[:3, 3] = [plate.corner_x - self.grasp.depth, plate.corner_y + self.grasp.edge_offset, plate.top_z - plate.thickness / 2]
+        return T
 
     def mount(self, arm: str) -> ArmMount:
         if arm == "left":
