@@ -291,7 +291,7 @@ def _cmd_workspace(args: argparse.Namespace) -> int:
     layout = _load_layout(args.layout)
     cfg = _load_plan_config(args.plan)
     ws_cfg = WorkspaceConfig(samples=args.samples, voxel=args.voxel, point=args.point, seed=args.seed)
-    ws = compute_workspace(geometry, layout, ws_cfg)
+    ws = compute_workspace(geometry, layout, ws_cfg, progress=args.progress)
     gp, hp = grinder_poses(layout, cfg), gripper_poses(layout, cfg)
     summary = ws.summary()
     task = {}
@@ -359,6 +359,7 @@ def build_parser() -> argparse.ArgumentParser:
     ws.add_argument("--point", choices=["tcp", "tip"], default="tcp")
     ws.add_argument("--seed", type=int, default=0)
     ws.add_argument("--section-y", type=float, default=0.0, help="y of the section view, m")
+    ws.add_argument("--progress", action="store_true", help="progress bars")
     ws.add_argument("--config", help="arm geometry TOML file")
     ws.add_argument("--layout", help="task layout TOML file")
     ws.add_argument("--plan", help="plan configuration TOML file")

@@ -18,7 +18,6 @@ path cannot be followed, naming the first offending point.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Literal
@@ -581,11 +580,6 @@ def _polyline_distance(points: Array, line: Array) -> Array:
         f = np.clip(((points - a) @ ab) / max(ab @ ab, 1e-300), 0.0, 1.0)
         best = np.minimum(best, np.linalg.norm(points - (a + f[:, None] * ab), axis=1))
     return best
-
-
-def replace(cfg: PlanConfig, **changes) -> PlanConfig:
-    """``dataclasses.replace`` that keeps validation errors as ConfigError."""
-    return dataclasses.replace(cfg, **changes)
 
 
 # ------------------------------------------------------------------------ outputs

@@ -57,11 +57,13 @@ def sample_configurations(geometry: ArmGeometry, n: int, seed: int) -> Array:
 
 
 def arm_cloud(geometry: ArmGeometry, base: ArrayLike, tool_length: float, n: int, seed: int,
-              chunk: int = 50_000) -> Array:
+              chunk: int = 20_000, progress: bool = False, label: str = "workspace") -> Array:
     """(n, 3) world positions of the tool point over sampled configurations."""
+    from tqdm import tqdm
+
     q = sample_configurations(geometry, n, seed)
     out = np.empty((n, 3))
-    for start in range(0, n, chunk):
+    for start in tqdm(range(0, n, chunk), desc=label, disable=not progress):
         w = kin.to_bending(q[start : start + chunk])
         T = kin.forward_kinematics_bending(geometry, w, base, tool_length)
         out[start : start + chunk] = T[:, :3, 3]
@@ -141,14 +143,16 @@ def _z_range(voxels: VoxelSet) -> list[float] | None:
     return [round(float(c[:, 2].min()), 4), round(float(c[:, 2].max()), 4)]
 
 
-def compute_workspace(geometry: ArmGeometry, layout: TaskLayout, config: WorkspaceConfig | None = None) -> CooperativeWorkspace:
+def compute_workspace(geometry: ArmGeometry, layout: TaskLayout, config: WorkspaceConfig | None = None,
+                      progress: bool = False) -> CooperativeWorkspace:
     """Sample both arms (left: grinder, right: gripper) in the world frame."""
     config = config or WorkspaceConfig()
     clouds = {}
     for offset, name in enumerate(("left", "right")):
         mount = layout.mount(name)
         length = geometry.tools.length(mount.tool) if config.point == "tcp" else 0.0
-        clouds[name] = arm_cloud(geometry, mount.base_transform(), length, config.samples, config.seed + offset)
+        clouds[name] = arm_cloud(geometry, mount.base_transform(), length, config.samples, config.seed + offset,
+                                 progress=progress, label=f"{name} arm")
     left = VoxelSet.from_points(clouds["left"], config.voxel)
     right = VoxelSet.from_points(clouds["right"], config.voxel)
     return CooperativeWorkspace(clouds["left"], clouds["right"], left, right, left & right, config)

@@ -1,6 +1,5 @@
 """Task toolpaths and the timed dual-arm plan (SPEC §5)."""
 
-import dataclasses
 import json
 import math
 
@@ -237,3 +236,16 @@ def test_cli_plan_writes_outputs(tmp_path, capsys):
     bad.write_text("[plate]\ntop_z = 0.3\n")
     assert main(["plan", "--out", str(tmp_path / "x"), "--layout", str(bad), "--no-plots"]) == 2
     assert "outside the left arm's workspace" in capsys.readouterr().err
+
+
+def test_layout_and_plan_config_toml_round_trip(tmp_path):
+    from continuum_sim.configio import from_dict, load_toml, save_toml
+
+    layout = TaskLayout(grasp=GraspLayout(tilt_deg=25.0, depth=0.01))
+    cfg = PlanConfig(cut_speed=0.004, limits=StepLimits(max_dtheta_deg=2.0), carry_offset=(0.01, 0.0, -0.02))
+    save_toml(layout, tmp_path / "layout.toml")
+    save_toml(cfg, tmp_path / "plan.toml")
+    assert from_dict(TaskLayout, load_toml(tmp_path / "layout.toml")) == layout
+    assert from_dict(PlanConfig, load_toml(tmp_path / "plan.toml")) == cfg
+    with pytest.raises(ConfigError, match="grasp.tilt_deg"):
+        from_dict(TaskLayout, {"grasp": {"tilt_deg": 90.0}})
