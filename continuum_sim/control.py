@@ -51,6 +51,18 @@ class ControlConfig:
         require_range("max_correction_deg", self.max_correction_deg, 0.0, 90.0, low_inclusive=True)
 
 
+def _rotation_error(R_target: Array, R_actual: Array) -> Array:
+    """log(R_target R_actualᵀ)^∨: the rotation that carries the actual frame onto the target."""
+    E = R_target @ R_actual.T
+    vee = 0.5 * np.array([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]])
+    sin = float(np.linalg.norm(vee))
+    cos = 0.5 * (float(np.trace(E)) - 1.0)
+    angle = float(np.arctan2(sin, cos))
+    if angle > 3.0:  # far from any useful correction; fall back to the robust log
+        return kin.log_so3(E)
+    return vee * (angle / sin if sin > 1e-12 else 1.0)
+
+
 class ArmController:
     """Set-points for one arm's cable actuators, open or closed loop."""
 
@@ -65,12 +77,16 @@ class ArmController:
         self.geometry = geometry
         self.config = config
         self.base = np.asarray(base, dtype=float)
-        self.base_rot_t = self.base[:3, :3].T
+        self.base_rot_t = self.base[:3, :3].T.copy()
         self.tool_length = float(tool_length)
         self.offset = config.pretension / cable_kp
         self.correction = np.zeros(2 * geometry.n_sections)
         self.weights = np.array([1.0, 1.0, 1.0] + [config.orientation_weight] * 3)
         self.max_bend = geometry.max_bend
+        self.max_correction = np.radians(config.max_correction_deg)
+        self._pose = kin.ArmKernel(geometry, self.tool_length)
+        self._cables = kin.CableKernel(geometry)
+        self._regulariser = config.damping * np.eye(6)
 
     def reset(self) -> None:
         self.correction[:] = 0.0
@@ -86,24 +102,25 @@ class ArmController:
 
     def update(self, q_plan: Array, tcp_plan: Array, tcp_pos: Array, tcp_mat: Array, dt: float) -> Array:
         """One control tick: returns the cable-length set-points (actuator controls)."""
-        if self.config.mode == "closed":
-            self._integrate(q_plan, tcp_plan, tcp_pos, tcp_mat, dt)
         w = self.commanded_bending(q_plan)
-        return kin.cable_lengths_bending(self.geometry, w) - self.offset
+        if self.config.mode == "closed" and dt > 0.0:
+            self._integrate(w, tcp_plan, np.asarray(tcp_pos), np.asarray(tcp_mat).reshape(3, 3), dt)
+            w = self.commanded_bending(q_plan)
+        return self._cables.lengths(w) - self.offset
 
-    def _integrate(self, q_plan: Array, tcp_plan: Array, tcp_pos: Array, tcp_mat: Array, dt: float) -> None:
+    def _integrate(self, w: Array, tcp_plan: Array, tcp_pos: Array, tcp_mat: Array, dt: float) -> None:
         rot_t = self.base_rot_t
-        e_pos = rot_t @ (tcp_plan[:3, 3] - tcp_pos)
-        e_rot = rot_t @ kin.log_so3(tcp_plan[:3, :3] @ np.asarray(tcp_mat).reshape(3, 3).T)
-        error = np.concatenate([e_pos, e_rot]) * self.weights
-        w = self.commanded_bending(q_plan)
-        _, J = kin.jacobian_bending(self.geometry, w, tool_length=self.tool_length)
-        J = J * self.weights[:, None]
-        step = J.T @ np.linalg.solve(J @ J.T + self.config.damping * np.eye(6), error)
+        error = np.empty(6)
+        error[:3] = rot_t @ (tcp_plan[:3, 3] - tcp_pos)
+        error[3:] = rot_t @ _rotation_error(tcp_plan[:3, :3], tcp_mat)
+        error *= self.weights
+        _, _, J_flat = self._pose.pose_jacobian(w)
+        J = np.asarray(J_flat).reshape(6, -1) * self.weights[:, None]
+        step = J.T @ np.linalg.solve(J @ J.T + self._regulariser, error)
         self.correction += self.config.outer_gain * dt * step
         # Bound the correction per section so a transient cannot wind it up.
-        limit = np.radians(self.config.max_correction_deg)
-        for k in range(self.geometry.n_sections):
-            norm = np.hypot(*self.correction[2 * k : 2 * k + 2])
-            if norm > limit:
-                self.correction[2 * k : 2 * k + 2] *= limit / norm
+        c = self.correction.reshape(-1, 2)
+        norms = np.hypot(c[:, 0], c[:, 1])
+        too_big = norms > self.max_correction
+        if np.any(too_big):
+            c[too_big] *= (self.max_correction / norms[too_big])[:, None]

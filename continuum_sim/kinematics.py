@@ -533,3 +533,46 @@ class ArmKernel:
             J[4 * m + c] = oy
             J[5 * m + c] = oz
         return R, [Px, Py, Pz], J
+
+
+class CableKernel:
+    """Cable lengths of ONE configuration with little per-call overhead (control loops).
+
+    Same closed-loop vectors as ``cable_lengths_bending`` (tested equal), with the hole
+    offsets and section masks precomputed once.
+    """
+
+    def __init__(self, geometry: ArmGeometry) -> None:
+        holes = geometry.cable_holes()
+        self._holes = holes
+        self._sections = []
+        cable_section = _cable_sections(geometry)
+        for m, section in enumerate(geometry.sections):
+            half = section.pitch / 2.0
+            weight = section.n_segments * (cable_section >= m).astype(float)
+            self._sections.append((float(section.n_segments), half, holes + np.array([0.0, 0.0, half]), weight))
+
+    def lengths(self, w: ArrayLike) -> Array:
+        """(n_cables,) cable lengths at bending coordinates ``w``."""
+        total = np.zeros(len(self._holes))
+        for m, (n, half, s_plus_h, weight) in enumerate(self._sections):
+            rx, ry = -float(w[2 * m + 1]) / n, float(w[2 * m]) / n  # rotation vector (rx, ry, 0)
+            angle = math.hypot(rx, ry)
+            A = _sinc_scalar(angle)
+            if angle < 1e-2:
+                a2 = angle * angle
+                B = 0.5 - a2 / 24.0 + a2 * a2 / 720.0
+            else:
+                B = (1.0 - math.cos(angle)) / (angle * angle)
+            # Rodrigues for a rotation vector in the xy plane.
+            R = np.array(
+                [
+                    [1.0 - B * ry * ry, B * rx * ry, A * ry],
+                    [B * rx * ry, 1.0 - B * rx * rx, -A * rx],
+                    [-A * ry, A * rx, 1.0 - B * (rx * rx + ry * ry)],
+                ]
+            )
+            l = s_plus_h @ R.T - self._holes
+            l[:, 2] += half
+            total += weight * np.sqrt(np.einsum("ij,ij->i", l, l))
+        return total

@@ -55,9 +55,11 @@ def test_hinge_pair_points_disks_like_the_pcc_model(geometry):
     set_arm_configuration(model, data, geometry, "arm", q, joint="hinge_pair")
     mujoco.mj_kinematics(model, data)
     mujoco.mj_tendon(model, data)
-    # Same pointing per joint, only a second-order twist: mm-level tip, ~20 µm cables.
-    np.testing.assert_allclose(data.xpos[ids[-1]], forward_kinematics(geometry, q)[:3, 3], atol=3e-3)
-    np.testing.assert_allclose(data.ten_length, cable_lengths(geometry, q), atol=5e-5)
+    # Same pointing per joint; the universal joints' second-order twist cancels between
+    # consecutive joints (alternating x-y / y-x order), leaving ~0.1 mm at the tip and ~1 µm
+    # in the cables at this large bend (without alternation: 1.3 mm and 20 µm).
+    np.testing.assert_allclose(data.xpos[ids[-1]], forward_kinematics(geometry, q)[:3, 3], atol=0.3e-3)
+    np.testing.assert_allclose(data.ten_length, cable_lengths(geometry, q), atol=3e-6)
 
 
 def test_joint_stiffness_scales_with_segment_count(geometry):

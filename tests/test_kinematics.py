@@ -189,3 +189,11 @@ def test_so3_log_exp_round_trip_including_pi():
 def test_wrong_q_length_is_rejected(geometry):
     with pytest.raises(ValueError, match="q must have 6 entries"):
         forward_kinematics(geometry, np.zeros(5))
+
+
+def test_cable_kernel_equals_vectorised_cable_lengths(geometry):
+    kernel = kin.CableKernel(geometry)
+    rng = np.random.default_rng(7)
+    for q in list(random_q(rng, geometry, 20)) + [np.zeros(6)]:
+        w = kin.to_bending(q)
+        np.testing.assert_allclose(kernel.lengths(w), kin.cable_lengths_bending(geometry, w), atol=1e-15, rtol=0)

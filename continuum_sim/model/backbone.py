@@ -15,6 +15,7 @@ from typing import Literal
 from ..configio import ConfigError
 
 JointKind = Literal["ball", "hinge_pair", "hinge_triple"]
+# hinge_pair: joint i (1-based) is Rx·Ry for odd i and Ry·Rx for even i (see _add_joints).
 
 
 @dataclass(frozen=True)
@@ -47,6 +48,10 @@ def _add_joints(body, index: int, link: LinkSpec, kind: JointKind) -> None:
         body.add("joint", name=f"joint_{index}", type="ball", stiffness=link.bending_stiffness, **common)
         return
     axes = [("x", (1, 0, 0), link.bending_stiffness), ("y", (0, 1, 0), link.bending_stiffness)]
+    if kind == "hinge_pair" and index % 2 == 0:
+        # Alternate the order (x-y, y-x, …): a universal joint adds a second-order twist
+        # ±ab/2 whose sign flips with the order, so consecutive joints cancel it.
+        axes.reverse()
     if kind == "hinge_triple":
         axes.append(("z", (0, 0, 1), link.twist_stiffness))
     elif kind != "hinge_pair":

@@ -270,7 +270,8 @@ def _add_plate(root: mjcf.RootElement, layout: TaskLayout, scene: SceneOptions, 
         body1=SAMPLE_BODY,
         body2=PLATE_BODY,
         anchor=tuple(centre - origin),
-        solref=(5 * timestep, 1.0),
+        solref=(2 * timestep, 1.0),
+        solimp=(0.99, 0.999, 0.001, 0.5, 2),
     )
 
 

@@ -29,19 +29,22 @@ def ball_quaternions(geometry: ArmGeometry, q: ArrayLike) -> np.ndarray:
 
 
 def hinge_pair_angles(geometry: ArmGeometry, q: ArrayLike) -> np.ndarray:
-    """(n_joints, 2) angles (a, b) of Rx(a)Ry(b) pointing each disk's z like the PCC model.
+    """(n_joints, 2) angles (a about x, b about y) pointing each disk's z like the PCC model.
 
-    A universal joint cannot reproduce the PCC rotation exactly (it adds a second-order
-    twist), but it points each disk's axis identically.
+    Joint i (1-based) composes Rx(a)·Ry(b) for odd i and Ry(b)·Rx(a) for even i (the
+    builder alternates the order so the universal joints' second-order twist cancels in
+    pairs); either way the disk axis points exactly where the PCC model points it.
     """
     rv = segment_rotation_vectors(geometry, q)
     beta = np.linalg.norm(rv, axis=1)
     axis_dir = np.where(beta[:, None] > 0, rv / np.where(beta > 0, beta, 1.0)[:, None], 0.0)
     # rotation about (-sin φ, cos φ, 0) by β sends e_z to (sin β cos φ, sin β sin φ, cos β)
     cos_phi, sin_phi = axis_dir[:, 1], -axis_dir[:, 0]
-    ez = np.column_stack([np.sin(beta) * cos_phi, np.sin(beta) * sin_phi, np.cos(beta)])
-    b = np.arcsin(np.clip(ez[:, 0], -1.0, 1.0))
-    a = np.arctan2(-ez[:, 1], ez[:, 2])
+    ex, ey, ez = np.sin(beta) * cos_phi, np.sin(beta) * sin_phi, np.cos(beta)
+    xy = (np.arange(1, len(rv) + 1) % 2) == 1
+    # Rx(a)Ry(b) e_z = (sin b, -sin a cos b, cos a cos b); Ry(b)Rx(a) e_z = (sin b cos a, -sin a, cos a cos b)
+    a = np.where(xy, np.arctan2(-ey, ez), np.arcsin(np.clip(-ey, -1.0, 1.0)))
+    b = np.where(xy, np.arcsin(np.clip(ex, -1.0, 1.0)), np.arctan2(ex, ez))
     return np.column_stack([a, b])
 
 

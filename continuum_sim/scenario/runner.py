@@ -315,9 +315,9 @@ def compute_metrics(series, plan, config: ScenarioConfig, cutter, moved_early: b
     cutting = plan.cutting[series["plan_index"].astype(int)]
     grinder_err = np.linalg.norm(series["left_tcp_pos"] - series["left_tcp_plan"][:, :3, 3], axis=1)
     out["cutting_tip_error_mm"] = met.error_stats(grinder_err[cutting])
-    plate = config.layout.plate
-    kerf = plate.kerf_polyline()[:, :2]
-    out["cut_path_deviation_mm"] = met.error_stats(met.polyline_distance(series["left_tcp_pos"][cutting, :2], kerf))
+    # Deviation across the planned cut, in the plate plane (the kerf's own line plus lead-in/out).
+    planned_cut = plan.tcp_left[plan.cutting][:, :2, 3]
+    out["cut_path_deviation_mm"] = met.error_stats(met.polyline_distance(series["left_tcp_pos"][cutting, :2], planned_cut))
     axis_err = met.axis_angle_deg(series["left_tcp_mat"][cutting, :, 2], np.array([0.0, 0.0, 1.0]))
     out["spindle_axis_error_deg"] = {
         "mean": float(axis_err.mean()) if axis_err.size else None,
