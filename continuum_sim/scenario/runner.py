@@ -51,6 +51,7 @@ class SceneHandles:
     gripper_actuator: int
     sample_body: int
     plate_body: int
+    geom_category: np.ndarray  # per geom: 0 world/other, 1 cutter, 2 gripper, 3 left arm, 4 right arm
 
 
 def _name2id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
@@ -83,7 +84,47 @@ def _handles(model: mujoco.MjModel, config: ScenarioConfig) -> SceneHandles:
         gripper_actuator=_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, "right/gripper/cable"),
         sample_body=_name2id(model, mujoco.mjtObj.mjOBJ_BODY, scene_mod.SAMPLE_BODY),
         plate_body=_name2id(model, mujoco.mjtObj.mjOBJ_BODY, scene_mod.PLATE_BODY),
+        geom_category=_geom_categories(model),
     )
+
+
+CONTACT_KINDS = ("cutter", "gripper", "arm_arm", "arm_world")
+
+
+def _geom_categories(model: mujoco.MjModel) -> np.ndarray:
+    category = np.zeros(model.ngeom, dtype=int)
+    for g in range(model.ngeom):
+        body = model.body(model.geom_bodyid[g]).name
+        name = model.geom(g).name
+        if name == "left/grinder/cutter":
+            category[g] = 1
+        elif body.startswith("right/gripper/"):
+            category[g] = 2
+        elif body.startswith("left/"):
+            category[g] = 3
+        elif body.startswith("right/"):
+            category[g] = 4
+    return category
+
+
+def _contact_forces(model: mujoco.MjModel, data: mujoco.MjData, category: np.ndarray) -> np.ndarray:
+    """Normal contact force (N) summed per kind: cutter, gripper, arm–arm, arm–world."""
+    out = np.zeros(len(CONTACT_KINDS))
+    force = np.zeros(6)
+    for i in range(data.ncon):
+        contact = data.contact[i]
+        a, b = sorted((category[contact.geom1], category[contact.geom2]))
+        mujoco.mj_contactForce(model, data, i, force)
+        f = abs(force[0])
+        if b == 1 or a == 1:
+            out[0] += f
+        elif b == 2 or a == 2:
+            out[1] += f
+        elif (a, b) == (3, 4):
+            out[2] += f
+        elif a == 0 and b in (3, 4):
+            out[3] += f
+    return out
 
 
 def build_scene_model(config: ScenarioConfig):
@@ -288,18 +329,8 @@ def _record(recorder: _Recorder, model, data, handles: SceneHandles, plan, index
     values["sample_pos"] = data.xpos[handles.sample_body]
     values["cells_remaining"] = cutter.cells_remaining
     values["spindle_speed"] = cutter.spindle_speed
-    values["contact_force"] = _contact_force_sum(model, data)
+    values["contact_force"] = _contact_forces(model, data, handles.geom_category)
     recorder.add(**values)
-
-
-def _contact_force_sum(model: mujoco.MjModel, data: mujoco.MjData) -> float:
-    """Sum of contact normal forces (N) in the scene now."""
-    total = 0.0
-    force = np.zeros(6)
-    for i in range(data.ncon):
-        mujoco.mj_contactForce(model, data, i, force)
-        total += abs(force[0])
-    return total
 
 
 def compute_metrics(series, plan, config: ScenarioConfig, cutter, moved_early: bool, stages, wall: float) -> dict[str, Any]:
@@ -324,6 +355,9 @@ def compute_metrics(series, plan, config: ScenarioConfig, cutter, moved_early: b
         "max": float(axis_err.max()) if axis_err.size else None,
     }
     out["min_arm_distance_m"] = float(series["arm_distance"].min())
+    forces = series["contact_force"]
+    out["max_contact_force_n"] = {kind: float(forces[:, k].max()) for k, kind in enumerate(CONTACT_KINDS)}
+    out["arms_touched"] = bool(forces[:, CONTACT_KINDS.index("arm_arm")].max() > 0.0)
     tension = np.concatenate([series["left_cable_tension"], series["right_cable_tension"]], axis=1)
     out["max_cable_tension_n"] = float(tension.max())
     out["min_cable_tension_n"] = float(tension.min())
