@@ -36,6 +36,7 @@ class ControlConfig:
     rate_hz: float = 250.0  # control (set-point) update rate
     pretension: float = 10.0  # N, tension every cable keeps at the planned shape
     outer_gain: float = 4.0  # 1/s, integral gain of the task-space correction
+    outer_proportional: float = 0.5  # proportional share of the pose error added to the command
     orientation_weight: float = 0.1  # m/rad: how much 1 rad of tool tilt counts against 1 m
     damping: float = 1e-4  # damped-least-squares regulariser (m²)
     max_correction_deg: float = 15.0  # bound on the correction per section (bending angle)
@@ -46,6 +47,7 @@ class ControlConfig:
         require_range("rate_hz", self.rate_hz, 1.0, 10000.0, low_inclusive=True)
         require_range("pretension", self.pretension, 0.0, 1000.0, low_inclusive=True)
         require_range("outer_gain", self.outer_gain, 0.0, 1000.0, low_inclusive=True)
+        require_range("outer_proportional", self.outer_proportional, 0.0, 10.0, low_inclusive=True)
         require_positive("orientation_weight", self.orientation_weight)
         require_range("damping", self.damping, 0.0, 1.0, low_inclusive=True)
         require_range("max_correction_deg", self.max_correction_deg, 0.0, 90.0, low_inclusive=True)
@@ -81,6 +83,7 @@ class ArmController:
         self.tool_length = float(tool_length)
         self.offset = config.pretension / cable_kp
         self.correction = np.zeros(2 * geometry.n_sections)
+        self.proportional = np.zeros(2 * geometry.n_sections)
         self.weights = np.array([1.0, 1.0, 1.0] + [config.orientation_weight] * 3)
         self.max_bend = geometry.max_bend
         self.max_correction = np.radians(config.max_correction_deg)
@@ -90,10 +93,11 @@ class ArmController:
 
     def reset(self) -> None:
         self.correction[:] = 0.0
+        self.proportional[:] = 0.0
 
     def commanded_bending(self, q_plan: Array) -> Array:
         """Planned shape plus the closed-loop correction, kept inside the bending limits."""
-        w = kin.to_bending(q_plan) + self.correction
+        w = kin.to_bending(q_plan) + self.correction + self.proportional
         theta = np.hypot(w[0::2], w[1::2])
         scale = np.minimum(1.0, self.max_bend / np.maximum(theta, 1e-15))
         w[0::2] *= scale
@@ -118,6 +122,7 @@ class ArmController:
         J = np.asarray(J_flat).reshape(6, -1) * self.weights[:, None]
         step = J.T @ np.linalg.solve(J @ J.T + self._regulariser, error)
         self.correction += self.config.outer_gain * dt * step
+        self.proportional = self.config.outer_proportional * step
         # Bound the correction per section so a transient cannot wind it up.
         c = self.correction.reshape(-1, 2)
         norms = np.hypot(c[:, 0], c[:, 1])

@@ -57,6 +57,7 @@ class PlanConfig:
     dwell_close: float = 1.0  # s, gripper closing on the plate
     dwell_spin_up: float = 1.0  # s, spindle reaching speed before the approach
     dwell_final: float = 0.5  # s
+    dwell_before_cut: float = 1.5  # s, the grinder settles at the cut start (in air) before feeding
     lead_in: float = 0.012  # m: the cut starts this far outside the front edge (> kerf_width/2)
     lead_out: float = 0.012  # m: and ends this far beyond the side edge
     approach_length: float = 0.020  # m: horizontal approach toward the front edge before the cut start
@@ -84,7 +85,7 @@ class PlanConfig:
         require_range("joint_speed_deg_s", self.joint_speed_deg_s, 0.0, 3600.0)
         require_range("joint_accel_deg_s2", self.joint_accel_deg_s2, 0.0, 1e5)
         require_range("waypoint_spacing", self.waypoint_spacing, 1e-4, 0.05, low_inclusive=True)
-        for name in ("dwell_initial", "dwell_close", "dwell_spin_up", "dwell_final"):
+        for name in ("dwell_initial", "dwell_close", "dwell_spin_up", "dwell_final", "dwell_before_cut"):
             require_range(name, getattr(self, name), 0.0, 600.0, low_inclusive=True)
         require_range("lead_in", self.lead_in, 0.0, 0.2)
         require_range("lead_out", self.lead_out, 0.0, 0.2)
@@ -379,11 +380,12 @@ def plan_task(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig | None 
     m_spin = _dwell("left", S["milling"], "spin_up", qL0, cfg.dwell_spin_up, **spin)
     m_tr = _joint_move("left", S["milling"], "approach", qL0, q_cut, cfg, grinder.phase, **spin)
     m_app = grinder.path_move(S["milling"], "approach", [gp["pre_cut"], gp["cut_start"]], q_cut, cfg.fast_speed, **spin)
+    m_settle = _dwell("left", S["milling"], "approach", m_app.q_end, cfg.dwell_before_cut, **spin)
     m_cut = grinder.path_move(S["milling"], "cutting", kerf, m_app.q_end, cfg.cut_speed, cutting=True, **spin)
     m_exit = grinder.path_move(S["milling"], "exit", [gp["side_edge"], gp["cut_end"]], m_cut.q_end, cfg.fast_speed, **spin)
     m_ret = grinder.path_move(S["milling"], "return", [gp["cut_end"]] + kerf[::-1] + [gp["pre_cut"]], m_exit.q_end,
                               cfg.fast_speed, **spin)
-    timeline.append((S["milling"], [m_spin, m_tr, m_app, m_cut, m_exit, m_ret]))
+    timeline.append((S["milling"], [m_spin, m_tr, m_app, m_settle, m_cut, m_exit, m_ret]))
     steps.update()
     # 4 retrieval
     m_carry = gripper.path_move(S["retrieval"], "carry", [hp["grasp"], hp["carried"]], m_close.q_end, cfg.fast_speed,
