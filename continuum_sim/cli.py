@@ -65,14 +65,52 @@ def _cmd_fk(args: argparse.Namespace) -> int:
 def _cmd_run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from .report import write_kinematics_report
+    from .scenario.config import ScenarioConfig, merged
 
-    geometry = _load_geometry(args.config)
+    config = ScenarioConfig.default() if args.config is None else ScenarioConfig.from_toml(args.config)
+    if args.control is not None:
+        config = merged(config, {"control": {"mode": args.control}})
     out = Path(args.out)
-    write_kinematics_report(geometry, out)
-    print(f"wrote kinematics report to {out}/ (the sample-removal scenario is not built yet)")
-    if args.video:
-        print("--video: no scenario video yet; it arrives with the scenario")
+    from .scenario.runner import SimulationDiverged, run_scenario
+
+    try:
+        metrics = run_scenario(config, out, video=args.video, progress=not args.quiet)
+    except SimulationDiverged as exc:
+        print(f"continuum-sim run: error: {exc}", file=sys.stderr)
+        return 3
+    summary = {
+        "sample_detached": metrics["sample_detached"],
+        "sample_held_at_end": metrics["sample_held_at_end"],
+        "detached_before_cut_complete": metrics["detached_before_cut_complete"],
+        "cutting_tip_error_mm_mean": round(metrics["cutting_tip_error_mm"]["mean"], 4),
+        "spindle_axis_error_deg_max": round(metrics["spindle_axis_error_deg"]["max"], 4),
+        "min_arm_distance_mm": round(1000 * metrics["min_arm_distance_m"], 2),
+        "control": metrics["control"],
+        "real_time_factor": round(metrics["real_time_factor"], 2),
+    }
+    print(json.dumps(summary, indent=2))
+    print(f"run folder: {out}/ (metrics.json, trajectory.npz, plots/, model/{', video.mp4' if args.video else ''})")
+    return 0
+
+
+def _cmd_view(args: argparse.Namespace) -> int:
+    import os
+
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        print(
+            "continuum-sim view: no display found (DISPLAY and WAYLAND_DISPLAY are unset); "
+            "the interactive viewer needs one. Headless: `continuum-sim run --video` renders off-screen.",
+            file=sys.stderr,
+        )
+        return 1
+    from .scenario.config import ScenarioConfig
+    from .scenario.runner import build_scene_model
+
+    config = ScenarioConfig.default() if args.config is None else ScenarioConfig.from_toml(args.config)
+    _, model = build_scene_model(config)
+    import mujoco.viewer
+
+    mujoco.viewer.launch(model)
     return 0
 
 
@@ -366,10 +404,16 @@ def build_parser() -> argparse.ArgumentParser:
     ws.set_defaults(func=_cmd_workspace)
 
     run = sub.add_parser("run", help="the main job: run the sample-removal scenario, write a run folder")
-    run.add_argument("--config", help="configuration TOML file")
+    run.add_argument("--config", help="scenario TOML file (overrides the shipped defaults)")
     run.add_argument("--out", default="runs/default", help="run folder (default: runs/default)")
-    run.add_argument("--video", action="store_true", help="render an MP4 off-screen")
+    run.add_argument("--video", action="store_true", help="render an MP4 off-screen (EGL)")
+    run.add_argument("--control", choices=["open", "closed"], help="open = the paper's method, closed = ours (default: config)")
+    run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.set_defaults(func=_cmd_run)
+
+    view = sub.add_parser("view", help="open the scene in MuJoCo's interactive viewer (needs a display)")
+    view.add_argument("--config", help="scenario TOML file")
+    view.set_defaults(func=_cmd_view)
 
     build = sub.add_parser("build-model", help="regenerate the MJCF models (dual_arm.xml, arm.xml)")
     build.add_argument("--out", default="models", help="output folder (default: models)")

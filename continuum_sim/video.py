@@ -28,7 +28,10 @@ class VideoRecorder:
         width: int = 640,
         height: int = 480,
         fps: float = 25.0,
+        shadows: bool = False,
     ) -> None:
+        """``shadows`` off by default: software GL (Mesa llvmpipe on CPU-only machines)
+        spends ~3× longer per frame on shadow maps and multisampling than on the scene."""
         choose_gl_backend()
         import imageio.v2 as imageio
         import mujoco
@@ -43,6 +46,9 @@ class VideoRecorder:
         # The offscreen buffer must hold the frame; grow it if the model asks for less.
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
         model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+        if not shadows:
+            model.light_castshadow[:] = 0
+            model.vis.quality.offsamples = 0
         self._renderer = mujoco.Renderer(model, height, width)
         self._writer = imageio.get_writer(
             self._tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264", quality=7, macro_block_size=8,

@@ -41,7 +41,8 @@ class SimulationConfig:
 
     seed: int = 0
     record_hz: float = 50.0  # time-series sampling rate
-    video_fps: float = 25.0
+    video_fps: float = 20.0
+    video_shadows: bool = False  # shadows and MSAA triple the frame time under software GL
     video_width: int = 640
     video_height: int = 480
     cameras: tuple[str, ...] = ("overview", "closeup")

@@ -175,12 +175,8 @@ def run_scenario(
 
     wall_start = time.perf_counter()
     out_dir = None if out_dir is None else Path(out_dir)
-    if out_dir is not None:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        config.save_toml(out_dir / "config.toml")
-
     geom = model_geometry(config.arm, config.model)
-    plan = plan_task(geom, config.layout, config.plan)
+    plan = plan_task(geom, config.layout, config.plan)  # refuses an unreachable task before anything is written
     stage_names = tuple(plan.stage_names)
     if stages is not None:
         unknown = [s for s in stages if s not in stage_names]
@@ -193,6 +189,8 @@ def run_scenario(
 
     root, model = build_scene_model(config)
     if out_dir is not None:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        config.save_toml(out_dir / "config.toml")
         from dm_control import mjcf
 
         mjcf.export_with_assets(root, str(out_dir / "model"), "scene.xml")
@@ -256,6 +254,7 @@ def run_scenario(
             config.simulation.video_width,
             config.simulation.video_height,
             config.simulation.video_fps,
+            shadows=config.simulation.video_shadows,
         )
     bar = None
     if progress:
@@ -267,6 +266,13 @@ def run_scenario(
             index = plan_index(data.time)
             if step % control_every == 0:
                 apply_controls(index, control_every * dt)
+            if step % record_every == 0:
+                rel = _relative_pose(data, handles.plate_body, handles.sample_body)
+                if sample_rest is None:
+                    sample_rest = rel
+                if not cutter.detached and np.linalg.norm(rel - sample_rest) > 1e-3:
+                    moved_early = True
+                _record(recorder, model, data, handles, plan, index, controllers, cutter)
             mujoco.mj_step(model, data)
             cutter.update(bool(plan.spindle_on[index]))
             failure = _check_health(data, baseline)
@@ -275,13 +281,6 @@ def run_scenario(
                     failure = f"non-finite state at t = {data.time:.4f} s"
             if failure is not None:
                 break
-            if step % record_every == 0:
-                rel = _relative_pose(data, handles.plate_body, handles.sample_body)
-                if sample_rest is None:
-                    sample_rest = rel
-                if not cutter.detached and np.linalg.norm(rel - sample_rest) > 1e-3:
-                    moved_early = True
-                _record(recorder, model, data, handles, plan, index, controllers, cutter)
             if recorder_video is not None:
                 recorder_video.maybe_capture(data)
             if bar is not None and step % 500 == 0:

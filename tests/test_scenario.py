@@ -1,0 +1,105 @@
+"""The sample-removal scenario end to end (SPEC §5, §7, §8)."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from continuum_sim.scenario.config import ScenarioConfig, merged
+from continuum_sim.scenario.runner import SimulationDiverged, run_scenario
+
+WALL_CLOCK_KEYS = {"wall_seconds", "real_time_factor"}
+
+
+@pytest.fixture(scope="module")
+def closed_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("closed")
+    return out, run_scenario(ScenarioConfig.default(), out)
+
+
+def test_closed_loop_scenario_meets_the_task(closed_run):
+    out, metrics = closed_run
+    assert metrics["control"] == "closed"
+    assert metrics["sample_detached"] and metrics["cells_remaining"] == 0
+    assert not metrics["detached_before_cut_complete"]
+    assert metrics["sample_held_at_end"]
+    assert metrics["min_arm_distance_m"] > 0.0 and not metrics["arms_touched"]
+    assert metrics["cutting_tip_error_mm"]["mean"] <= 0.25
+    assert metrics["spindle_axis_error_deg"]["max"] <= 1.0
+    assert metrics["max_cable_tension_n"] <= ScenarioConfig().model.cable_max_force
+    # The sample comes free only when the last kerf cell goes, during the cut.
+    series = np.load(out / "trajectory.npz")
+    detach = metrics["detach_time_s"]
+    cells_at = series["cells_remaining"][np.searchsorted(series["t"], detach) - 1]
+    assert cells_at <= 1
+
+
+def test_run_folder_holds_everything(closed_run):
+    out, metrics = closed_run
+    for name in ("config.toml", "metrics.json", "trajectory.npz", "model/scene.xml"):
+        assert (out / name).exists(), name
+    for name in ("toolpath.png", "section_angles.png", "tip_error.png", "cable_tensions.png"):
+        assert (out / "plots" / name).stat().st_size > 10_000, name
+    assert ScenarioConfig.from_toml(out / "config.toml") == ScenarioConfig.default()
+    written = json.loads((out / "metrics.json").read_text())
+    assert written["sample_detached"] == metrics["sample_detached"]
+    for stage in ("initial", "clamping", "milling", "retrieval", "return"):
+        assert set(written["tip_error_mm"]["left"][stage]) == {"mean", "rms", "max"}
+    series = np.load(out / "trajectory.npz")
+    assert series["left_cable_tension"].shape[1] == 9
+    assert np.all(np.diff(series["t"]) > 0)
+
+
+def test_same_configuration_gives_identical_metrics():
+    config = ScenarioConfig.default()
+    first = run_scenario(config, None, stages=("initial", "clamping"))
+    second = run_scenario(config, None, stages=("initial", "clamping"))
+    strip = lambda m: {k: v for k, v in m.items() if k not in WALL_CLOCK_KEYS}  # noqa: E731
+    assert json.dumps(strip(first), sort_keys=True) == json.dumps(strip(second), sort_keys=True)
+
+
+def test_open_loop_runs_and_strays_further_than_closed():
+    config = ScenarioConfig.default()
+    closed = run_scenario(config, None, stages=("initial", "clamping"))
+    opened = run_scenario(merged(config, {"control": {"mode": "open"}}), None, stages=("initial", "clamping"))
+    assert opened["control"] == "open"
+    assert opened["tip_error_mm"]["right"]["clamping"]["mean"] > 3 * closed["tip_error_mm"]["right"]["clamping"]["mean"]
+
+
+def test_divergence_stops_with_a_message_and_keeps_results(tmp_path):
+    # A 10 ms step with stiff motor loops is far past the explicit stability limit.
+    config = merged(ScenarioConfig.default(), {"model": {"timestep": 0.01, "cable_kp": 1.0e6}})
+    with pytest.raises(SimulationDiverged, match="simulation diverged: MuJoCo warning|non-finite"):
+        run_scenario(config, tmp_path, stages=("initial", "clamping"))
+    written = json.loads((tmp_path / "metrics.json").read_text())
+    assert "diverged" in written
+    assert (tmp_path / "trajectory.npz").exists() and (tmp_path / "config.toml").exists()
+
+
+def test_unknown_stage_is_rejected():
+    with pytest.raises(ValueError, match="stages: unknown stage 'cooking'"):
+        run_scenario(ScenarioConfig.default(), None, stages=("cooking",))
+
+
+@pytest.mark.parametrize(
+    "text, fragment",
+    [
+        ('[control]\nmode = "sideways"\n', "control.mode"),
+        ("[model]\ntimestep = -0.001\n", "model.timestep"),
+        ("[plan]\ncut_speed = 0.0\n", "plan.cut_speed"),
+    ],
+)
+def test_cli_run_rejects_bad_config_in_one_line(tmp_path, text, fragment):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    out = tmp_path / "run"
+    result = subprocess.run(
+        [sys.executable, "-m", "continuum_sim", "run", "--config", str(path), "--out", str(out), "--quiet"],
+        capture_output=True,
+        text=True,
+    )
+    assert result.returncode == 2
+    assert fragment in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert not out.exists()
