@@ -55,14 +55,6 @@ def preflight(spec: SweepSpec, backend: Backend, workers: int | None) -> None:
         raise ConfigError("--workers", f"must satisfy 1 <= workers <= 4096 (got {workers})")
     if backend not in ("local", "ray"):
         raise ConfigError("--backend", f"must be 'local' or 'ray' (got {backend!r})")
-    if not spec.evaluation.static:
-        from .worker import scenario_runner_available
-
-        if not scenario_runner_available():
-            raise ConfigError(
-                "evaluation.kind",
-                f"{spec.evaluation.kind!r} needs continuum_sim.scenario.runner.run_scenario, which this installation lacks",
-            )
 
 
 def run_sweep(
