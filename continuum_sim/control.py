@@ -33,7 +33,7 @@ class ControlConfig:
     """Controller settings; ``mode`` switches between the paper's open loop and ours."""
 
     mode: Literal["open", "closed"] = "closed"
-    rate_hz: float = 250.0  # control (set-point) update rate
+    rate_hz: float = 100.0  # control (set-point) update rate; the motor loops run every step
     pretension: float = 10.0  # N, tension every cable keeps at the planned shape
     outer_gain: float = 4.0  # 1/s, integral gain of the task-space correction
     outer_proportional: float = 0.5  # proportional share of the pose error added to the command

@@ -242,7 +242,9 @@ def run_scenario(
     moved_early = False
     failure: str | None = None
 
-    n_steps = int(np.ceil(end_time / dt))
+    n_ticks = int(np.ceil(end_time / (dt * control_every)))
+    # Record on control ticks: every ``record_ticks``-th tick (≥ 1).
+    record_ticks = max(1, int(round(record_every / control_every)))
     recorder_video = None
     if video and out_dir is not None:
         from ..video import VideoRecorder
@@ -262,28 +264,27 @@ def run_scenario(
 
         bar = tqdm(total=round(end_time, 2), unit="sim s", desc="scenario", bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} sim s [{elapsed}<{remaining}]")
     try:
-        for step in range(n_steps):
+        for tick in range(n_ticks):
             index = plan_index(data.time)
-            if step % control_every == 0:
-                apply_controls(index, control_every * dt)
-            if step % record_every == 0:
+            apply_controls(index, control_every * dt)
+            if tick % record_ticks == 0:
                 rel = _relative_pose(data, handles.plate_body, handles.sample_body)
                 if sample_rest is None:
                     sample_rest = rel
                 if not cutter.detached and np.linalg.norm(rel - sample_rest) > 1e-3:
                     moved_early = True
                 _record(recorder, model, data, handles, plan, index, controllers, cutter)
-            mujoco.mj_step(model, data)
+            # The motor loops run inside MuJoCo every step; set-points change per tick.
+            mujoco.mj_step(model, data, nstep=control_every)
             cutter.update(bool(plan.spindle_on[index]))
             failure = _check_health(data, baseline)
-            if failure is None and step % record_every == 0:
-                if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
-                    failure = f"non-finite state at t = {data.time:.4f} s"
+            if failure is None and not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
+                failure = f"non-finite state at t = {data.time:.4f} s"
             if failure is not None:
                 break
             if recorder_video is not None:
                 recorder_video.maybe_capture(data)
-            if bar is not None and step % 500 == 0:
+            if bar is not None and tick % 100 == 0:
                 bar.n = round(data.time, 2)
                 bar.refresh()
     finally:
