@@ -154,7 +154,7 @@ def pool_first_start() -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--variants", type=int, default=12)
+    parser.add_argument("--variants", type=int, default=24)
     parser.add_argument("--settle", type=float, default=2.0, help="simulated seconds per phase")
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
