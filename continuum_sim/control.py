@@ -36,7 +36,7 @@ class ControlConfig:
     rate_hz: float = 100.0  # control (set-point) update rate; the motor loops run every step
     pretension: float = 10.0  # N, tension every cable keeps at the planned shape
     outer_gain: float = 4.0  # 1/s, integral gain of the task-space correction
-    outer_proportional: float = 0.5  # proportional share of the pose error added to the command
+    outer_proportional: float = 2.0  # proportional share of the pose error added to the command
     orientation_weight: float = 0.1  # m/rad: how much 1 rad of tool tilt counts against 1 m
     damping: float = 1e-4  # damped-least-squares regulariser (m²)
     max_correction_deg: float = 15.0  # bound on the correction per section (bending angle)
