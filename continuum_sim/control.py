@@ -104,15 +104,21 @@ class ArmController:
         w[1::2] *= scale
         return w
 
-    def update(self, q_plan: Array, tcp_plan: Array, tcp_pos: Array, tcp_mat: Array, dt: float) -> Array:
-        """One control tick: returns the cable-length set-points (actuator controls)."""
+    def update(
+        self, q_plan: Array, tcp_plan: Array, tcp_pos: Array, tcp_mat: Array, dt: float, holding: bool = False
+    ) -> Array:
+        """One control tick: returns the cable-length set-points (actuator controls).
+
+        ``holding``: the tool grips something fixed. The proportional share is then off: a
+        stiff grasp contact in the loop makes it chatter; the integral share stays.
+        """
         w = self.commanded_bending(q_plan)
         if self.config.mode == "closed" and dt > 0.0:
-            self._integrate(w, tcp_plan, np.asarray(tcp_pos), np.asarray(tcp_mat).reshape(3, 3), dt)
+            self._integrate(w, tcp_plan, np.asarray(tcp_pos), np.asarray(tcp_mat).reshape(3, 3), dt, holding)
             w = self.commanded_bending(q_plan)
         return self._cables.lengths(w) - self.offset
 
-    def _integrate(self, w: Array, tcp_plan: Array, tcp_pos: Array, tcp_mat: Array, dt: float) -> None:
+    def _integrate(self, w: Array, tcp_plan: Array, tcp_pos: Array, tcp_mat: Array, dt: float, holding: bool) -> None:
         rot_t = self.base_rot_t
         error = np.empty(6)
         error[:3] = rot_t @ (tcp_plan[:3, 3] - tcp_pos)
@@ -122,7 +128,7 @@ class ArmController:
         J = np.asarray(J_flat).reshape(6, -1) * self.weights[:, None]
         step = J.T @ np.linalg.solve(J @ J.T + self._regulariser, error)
         self.correction += self.config.outer_gain * dt * step
-        self.proportional = self.config.outer_proportional * step
+        self.proportional = (0.0 if holding else self.config.outer_proportional) * step
         # Bound the correction per section so a transient cannot wind it up.
         c = self.correction.reshape(-1, 2)
         norms = np.hypot(c[:, 0], c[:, 1])

@@ -7,15 +7,15 @@ from continuum_sim import ArmGeometry, ConfigError, tool_centre_pose
 from continuum_sim.control import ArmController, ControlConfig
 from continuum_sim.glbackend import choose_gl_backend
 from continuum_sim.model.arm import build_single_arm_model
-from continuum_sim.model.options import ModelOptions
+from continuum_sim.scenario.config import ScenarioConfig
 
 choose_gl_backend()
 import mujoco  # noqa: E402
 
 
-def hold_pose(mode: str, seconds: float = 4.0):
+def hold_pose(mode: str, seconds: float = 6.0):
     geometry = ArmGeometry.default()
-    options = ModelOptions()
+    options = ScenarioConfig().model  # the fidelity the controller is tuned for
     root = build_single_arm_model(geometry, options, "grinder")
     model = mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
     data = mujoco.MjData(model)

@@ -224,10 +224,13 @@ def run_scenario(
         return min(int(round(t * plan_rate)), len(plan.t) - 1)
 
     def apply_controls(index: int, tick_dt: float) -> None:
+        # The gripper holds something fixed while its jaws are shut on the still-welded sample.
+        holding = {"left": False, "right": bool(plan.gripper_closed[index]) and not cutter.detached}
         for arm in ARMS:
             site = handles.tcp_site[arm]
             data.ctrl[handles.cable_actuators[arm]] = controllers[arm].update(
-                q_plans[arm][index], tcp_plans[arm][index], data.site_xpos[site], data.site_xmat[site], tick_dt
+                q_plans[arm][index], tcp_plans[arm][index], data.site_xpos[site], data.site_xmat[site], tick_dt,
+                holding[arm],
             )
         data.ctrl[handles.gripper_actuator] = (
             tool_options.gripper_cable_closed if plan.gripper_closed[index] else tool_options.gripper_cable_open
