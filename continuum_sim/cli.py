@@ -175,27 +175,17 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _load_layout(path: str | None):
-    from .configio import from_dict, load_toml
+    from .configio import config_from_file, from_dict
     from .layout import TaskLayout
 
-    if path is None:
-        return TaskLayout()
-    try:
-        return from_dict(TaskLayout, load_toml(path))
-    except ConfigError as exc:
-        raise exc.under(f"{path}: ") from None
+    return TaskLayout() if path is None else config_from_file(path, lambda data: from_dict(TaskLayout, data))
 
 
 def _load_plan_config(path: str | None):
-    from .configio import from_dict, load_toml
+    from .configio import config_from_file, from_dict
     from .toolpath import PlanConfig
 
-    if path is None:
-        return PlanConfig()
-    try:
-        return from_dict(PlanConfig, load_toml(path))
-    except ConfigError as exc:
-        raise exc.under(f"{path}: ") from None
+    return PlanConfig() if path is None else config_from_file(path, lambda data: from_dict(PlanConfig, data))
 
 
 def _target_from_args(args: argparse.Namespace) -> np.ndarray:

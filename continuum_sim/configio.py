@@ -13,6 +13,7 @@ import os
 import tempfile
 import tomllib
 import types
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal, TypeVar, Union, get_args, get_origin, get_type_hints
 
@@ -270,6 +271,16 @@ def load_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
         raise ConfigError(str(path), "file not found") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(str(path), f"invalid TOML: {exc}") from None
+
+
+def config_from_file(path: str | os.PathLike[str], build: "Callable[[dict[str, Any]], T]") -> T:
+    """``build(toml_dict)`` for the file at ``path``; every error names the file, once."""
+    try:
+        return build(load_toml(path))
+    except ConfigError as exc:
+        if exc.field.startswith(str(path)):  # already about the file itself (missing, bad TOML)
+            raise
+        raise exc.under(f"{path}: ") from None
 
 
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:

@@ -17,8 +17,8 @@ import numpy as np
 
 from .configio import (
     ConfigError,
+    config_from_file,
     from_dict,
-    load_toml,
     require_positive,
     require_range,
     save_toml,
@@ -173,12 +173,7 @@ class ArmGeometry:
     @classmethod
     def from_toml(cls, path: str | os.PathLike[str]) -> "ArmGeometry":
         """Load from TOML; errors name the file and the field."""
-        try:
-            return from_dict(cls, load_toml(path))
-        except ConfigError as exc:
-            if exc.field.startswith(str(path)):
-                raise
-            raise exc.under(f"{path}: ") from None
+        return config_from_file(path, lambda data: from_dict(cls, data))
 
     def to_dict(self) -> dict:
         return to_dict(self)

@@ -116,3 +116,11 @@ def test_cli_rejects_out_of_range_bend():
     result = _cli("fk", "120", "0", "0", "0", "0", "0", "--deg")
     assert result.returncode == 2
     assert "θ0 must satisfy 0 <= θ0 <= 90 deg" in result.stderr
+
+
+@pytest.mark.parametrize("command", [["fk", "0", "0", "0", "0", "0", "0", "--config"], ["plan", "--layout"], ["run", "--config"]])
+def test_cli_missing_config_file_is_named_once(tmp_path, command):
+    missing = str(tmp_path / "missing.toml")
+    result = _cli(*command, missing)
+    assert result.returncode == 2
+    assert result.stderr.count(missing) == 1 and "file not found" in result.stderr

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from importlib import resources
 from typing import Any
 
-from ..configio import ConfigError, from_dict, load_toml, require_range, save_toml, to_dict
+from ..configio import ConfigError, config_from_file, from_dict, require_range, save_toml, to_dict
 from ..control import ControlConfig
 from ..geometry import ArmGeometry
 from ..layout import TaskLayout
@@ -82,12 +82,7 @@ class ScenarioConfig:
     @classmethod
     def from_toml(cls, path: str | os.PathLike[str]) -> "ScenarioConfig":
         """A user file over the shipped defaults; errors name the file and the field."""
-        try:
-            return merged(cls.default(), load_toml(path))
-        except ConfigError as exc:
-            if exc.field.startswith(str(path)):
-                raise
-            raise exc.under(f"{path}: ") from None
+        return config_from_file(path, lambda data: merged(cls.default(), data))
 
     def save_toml(self, path: str | os.PathLike[str]) -> None:
         save_toml(self, path)
