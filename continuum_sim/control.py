@@ -15,11 +15,13 @@ state is read from ``MjData`` each control tick.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.linalg.lapack import dposv as _dposv
 
 from . import kinematics as kin
 from .configio import ConfigError, require_positive, require_range
@@ -33,7 +35,7 @@ class ControlConfig:
     """Controller settings; ``mode`` switches between the paper's open loop and ours."""
 
     mode: Literal["open", "closed"] = "closed"
-    rate_hz: float = 100.0  # control (set-point) update rate; the motor loops run every step
+    rate_hz: float = 125.0  # control (set-point) update rate (rounded to whole steps); the motor loops run every step
     pretension: float = 10.0  # N, tension every cable keeps at the planned shape
     outer_gain: float = 4.0  # 1/s, integral gain of the task-space correction
     outer_proportional: float = 2.0  # proportional share of the pose error added to the command
@@ -55,14 +57,32 @@ class ControlConfig:
 
 def _rotation_error(R_target: Array, R_actual: Array) -> Array:
     """log(R_target R_actualᵀ)^∨: the rotation that carries the actual frame onto the target."""
-    E = R_target @ R_actual.T
-    vee = 0.5 * np.array([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]])
-    sin = float(np.linalg.norm(vee))
-    cos = 0.5 * (float(np.trace(E)) - 1.0)
-    angle = float(np.arctan2(sin, cos))
+    return np.array(_rotation_error_scalar(np.asarray(R_target).ravel().tolist(), np.asarray(R_actual).ravel().tolist()))
+
+
+def _rotation_error_scalar(t: list[float], a: list[float]) -> list[float]:
+    """``_rotation_error`` on row-major 3×3 lists: the control tick's version, no numpy calls.
+
+    Only the skew part and the trace of E = R_t R_aᵀ are needed: E_ij = Σ_k t_ik a_jk.
+    """
+    e00 = t[0] * a[0] + t[1] * a[1] + t[2] * a[2]
+    e11 = t[3] * a[3] + t[4] * a[4] + t[5] * a[5]
+    e22 = t[6] * a[6] + t[7] * a[7] + t[8] * a[8]
+    e01 = t[0] * a[3] + t[1] * a[4] + t[2] * a[5]
+    e10 = t[3] * a[0] + t[4] * a[1] + t[5] * a[2]
+    e02 = t[0] * a[6] + t[1] * a[7] + t[2] * a[8]
+    e20 = t[6] * a[0] + t[7] * a[1] + t[8] * a[2]
+    e12 = t[3] * a[6] + t[4] * a[7] + t[5] * a[8]
+    e21 = t[6] * a[3] + t[7] * a[4] + t[8] * a[5]
+    vx, vy, vz = 0.5 * (e21 - e12), 0.5 * (e02 - e20), 0.5 * (e10 - e01)
+    sin = math.sqrt(vx * vx + vy * vy + vz * vz)
+    cos = 0.5 * (e00 + e11 + e22 - 1.0)
+    angle = math.atan2(sin, cos)
     if angle > 3.0:  # far from any useful correction; fall back to the robust log
-        return kin.log_so3(E)
-    return vee * (angle / sin if sin > 1e-12 else 1.0)
+        E = np.array([[e00, e01, e02], [e10, e11, e12], [e20, e21, e22]])
+        return kin.log_so3(E).tolist()
+    scale = angle / sin if sin > 1e-12 else 1.0
+    return [vx * scale, vy * scale, vz * scale]
 
 
 class ArmController:
@@ -86,22 +106,36 @@ class ArmController:
         self.proportional = np.zeros(2 * geometry.n_sections)
         self.weights = np.array([1.0, 1.0, 1.0] + [config.orientation_weight] * 3)
         self.max_bend = geometry.max_bend
+        self._max_bend = np.broadcast_to(geometry.max_bend, (geometry.n_sections,)).astype(float).tolist()
         self.max_correction = np.radians(config.max_correction_deg)
         self._pose = kin.ArmKernel(geometry, self.tool_length)
         self._cables = kin.CableKernel(geometry)
         self._regulariser = config.damping * np.eye(6)
+        self._holding = False
+        self.last_command: list[float] = []  # bending coordinates of the last set-points (for recording)
 
     def reset(self) -> None:
         self.correction[:] = 0.0
         self.proportional[:] = 0.0
+        self._holding = False
 
     def commanded_bending(self, q_plan: Array) -> Array:
         """Planned shape plus the closed-loop correction, kept inside the bending limits."""
-        w = kin.to_bending(q_plan) + self.correction + self.proportional
-        theta = np.hypot(w[0::2], w[1::2])
-        scale = np.minimum(1.0, self.max_bend / np.maximum(theta, 1e-15))
-        w[0::2] *= scale
-        w[1::2] *= scale
+        return np.array(self._commanded(q_plan))
+
+    def _commanded(self, q_plan) -> list[float]:
+        # Scalar per section: this runs twice per arm per control tick.
+        w = []
+        c, p = self.correction, self.proportional
+        for k in range(len(self.correction) // 2):
+            theta, phi = float(q_plan[2 * k]), float(q_plan[2 * k + 1])
+            u = theta * math.cos(phi) + c[2 * k] + p[2 * k]
+            v = theta * math.sin(phi) + c[2 * k + 1] + p[2 * k + 1]
+            bend, max_bend = math.hypot(u, v), self._max_bend[k]
+            if bend > max_bend:
+                u, v = u * max_bend / bend, v * max_bend / bend
+            w.append(u)
+            w.append(v)
         return w
 
     def update(
@@ -109,29 +143,51 @@ class ArmController:
     ) -> Array:
         """One control tick: returns the cable-length set-points (actuator controls).
 
-        ``holding``: the tool grips something fixed. The proportional share is then off: a
-        stiff grasp contact in the loop makes it chatter; the integral share stays.
+        ``holding``: the tool grips something fixed (the gripper on the still-welded
+        sample). The command is then held where it was when the grasp closed (proportional
+        share folded into the correction, no integration): the object, not the arm, sets the
+        tool pose, and an integrator fighting it winds up a correction that either drags
+        the grasp along the object or flings the object when it comes free.
         """
-        w = self.commanded_bending(q_plan)
+        if holding:
+            if not self._holding:
+                self.correction += self.proportional
+                self.proportional = np.zeros_like(self.proportional)
+            dt = 0.0
+        self._holding = holding
+        w = self._commanded(q_plan)
         if self.config.mode == "closed" and dt > 0.0:
-            self._integrate(w, tcp_plan, np.asarray(tcp_pos), np.asarray(tcp_mat).reshape(3, 3), dt, holding)
-            w = self.commanded_bending(q_plan)
+            self._integrate(w, tcp_plan, tcp_pos, tcp_mat, dt)
+            w = self._commanded(q_plan)
+        self.last_command = w
         return self._cables.lengths(w) - self.offset
 
-    def _integrate(self, w: Array, tcp_plan: Array, tcp_pos: Array, tcp_mat: Array, dt: float, holding: bool) -> None:
+    def _integrate(self, w, tcp_plan: Array, tcp_pos: Array, tcp_mat: Array, dt: float) -> None:
+        """Integrate the weighted tool-pose error through the PCC Jacobian (damped least squares)."""
+        plan = np.asarray(tcp_plan)
         rot_t = self.base_rot_t
         error = np.empty(6)
-        error[:3] = rot_t @ (tcp_plan[:3, 3] - tcp_pos)
-        error[3:] = rot_t @ _rotation_error(tcp_plan[:3, :3], tcp_mat)
+        error[:3] = rot_t @ (plan[:3, 3] - tcp_pos)
+        error[3:] = rot_t @ _rotation_error_scalar(plan[:3, :3].ravel().tolist(), np.asarray(tcp_mat).ravel().tolist())
         error *= self.weights
         _, _, J_flat = self._pose.pose_jacobian(w)
-        J = np.asarray(J_flat).reshape(6, -1) * self.weights[:, None]
-        step = J.T @ np.linalg.solve(J @ J.T + self._regulariser, error)
+        J = np.array(J_flat).reshape(6, -1)
+        J *= self.weights[:, None]
+        step = J.T @ _solve_spd(J @ J.T + self._regulariser, error)
         self.correction += self.config.outer_gain * dt * step
-        self.proportional = (0.0 if holding else self.config.outer_proportional) * step
+        self.proportional = self.config.outer_proportional * step
         # Bound the correction per section so a transient cannot wind it up.
-        c = self.correction.reshape(-1, 2)
-        norms = np.hypot(c[:, 0], c[:, 1])
-        too_big = norms > self.max_correction
-        if np.any(too_big):
-            c[too_big] *= (self.max_correction / norms[too_big])[:, None]
+        c = self.correction
+        for k in range(len(c) // 2):
+            norm = math.hypot(c[2 * k], c[2 * k + 1])
+            if norm > self.max_correction:
+                c[2 * k : 2 * k + 2] *= self.max_correction / norm
+
+
+def _solve_spd(A: Array, b: Array) -> Array:
+    """A⁻¹ b for a symmetric positive definite A: LAPACK's posv, a third of np.linalg.solve's overhead."""
+    _, x, info = _dposv(A, b)
+    if info != 0:
+        return np.linalg.solve(A, b)
+    return x
+

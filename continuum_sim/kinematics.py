@@ -538,41 +538,45 @@ class ArmKernel:
 class CableKernel:
     """Cable lengths of ONE configuration with little per-call overhead (control loops).
 
-    Same closed-loop vectors as ``cable_lengths_bending`` (tested equal), with the hole
-    offsets and section masks precomputed once.
+    Same closed-loop vectors as ``cable_lengths_bending`` (tested equal). Every (section,
+    cable passing it) pair is one row: its segment vector is ``C_m @ (hx, hy, 1)``, where
+    the 3×3 ``C_m`` holds section m's Rodrigues terms (``R s − h + half·z`` with
+    ``s = h + half·z``); the per-section scalars are computed in plain Python and the 18
+    rows in three numpy calls.
     """
 
     def __init__(self, geometry: ArmGeometry) -> None:
         holes = geometry.cable_holes()
-        self._holes = holes
-        self._sections = []
         cable_section = _cable_sections(geometry)
-        for m, section in enumerate(geometry.sections):
-            half = section.pitch / 2.0
-            weight = section.n_segments * (cable_section >= m).astype(float)
-            self._sections.append((float(section.n_segments), half, holes + np.array([0.0, 0.0, half]), weight))
+        pairs = [(m, c) for m in range(geometry.n_sections) for c in range(len(holes)) if cable_section[c] >= m]
+        self._pair_section = np.array([m for m, _ in pairs], dtype=int)
+        self._pair_holes = np.array([[holes[c][0], holes[c][1], 1.0] for _, c in pairs])
+        self._sections = [(float(s.n_segments), float(s.pitch / 2.0)) for s in geometry.sections]
+        # Sums n_m · |l_mc| over the sections each cable passes.
+        self._gather = np.zeros((len(holes), len(pairs)))
+        for p, (m, c) in enumerate(pairs):
+            self._gather[c, p] = geometry.sections[m].n_segments
 
     def lengths(self, w: ArrayLike) -> Array:
         """(n_cables,) cable lengths at bending coordinates ``w``."""
-        total = np.zeros(len(self._holes))
-        for m, (n, half, s_plus_h, weight) in enumerate(self._sections):
+        coefficients = []
+        for m, (n, half) in enumerate(self._sections):
             rx, ry = -float(w[2 * m + 1]) / n, float(w[2 * m]) / n  # rotation vector (rx, ry, 0)
-            angle = math.hypot(rx, ry)
+            angle2 = rx * rx + ry * ry
+            angle = math.sqrt(angle2)
             A = _sinc_scalar(angle)
             if angle < 1e-2:
-                a2 = angle * angle
-                B = 0.5 - a2 / 24.0 + a2 * a2 / 720.0
+                B = 0.5 - angle2 / 24.0 + angle2 * angle2 / 720.0
             else:
-                B = (1.0 - math.cos(angle)) / (angle * angle)
-            # Rodrigues for a rotation vector in the xy plane.
-            R = np.array(
+                B = (1.0 - math.cos(angle)) / angle2
+            bxy = B * rx * ry
+            coefficients.append(
                 [
-                    [1.0 - B * ry * ry, B * rx * ry, A * ry],
-                    [B * rx * ry, 1.0 - B * rx * rx, -A * rx],
-                    [-A * ry, A * rx, 1.0 - B * (rx * rx + ry * ry)],
+                    [-B * ry * ry, bxy, A * ry * half],
+                    [bxy, -B * rx * rx, -A * rx * half],
+                    [-A * ry, A * rx, (2.0 - B * angle2) * half],
                 ]
             )
-            l = s_plus_h @ R.T - self._holes
-            l[:, 2] += half
-            total += weight * np.sqrt(np.einsum("ij,ij->i", l, l))
-        return total
+        rows = np.array(coefficients)[self._pair_section]
+        segment = np.einsum("pij,pj->pi", rows, self._pair_holes)
+        return self._gather @ np.sqrt(np.einsum("pi,pi->p", segment, segment))

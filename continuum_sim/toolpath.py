@@ -515,9 +515,12 @@ def arm_clearance(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig, q_
     pl, rl = arm_envelope(geometry, layout, cfg, "left", q_left)
     pr, rr = arm_envelope(geometry, layout, cfg, "right", q_right)
     out = np.empty(len(q_left))
+    radii = rl[:, None] + rr[None, :]
     for start in range(0, len(q_left), 500):
-        d = np.linalg.norm(pl[start:start + 500, :, None, :] - pr[start:start + 500, None, :, :], axis=-1)
-        out[start:start + 500] = np.min(d - rl[:, None] - rr[None, :], axis=(1, 2))
+        a, b = pl[start:start + 500], pr[start:start + 500]
+        # |a - b|² = |a|² + |b|² - 2 a·b: one batched matmul instead of an (n, na, nb, 3) difference.
+        d2 = np.einsum("nid,nid->ni", a, a)[:, :, None] + np.einsum("njd,njd->nj", b, b)[:, None, :] - 2.0 * a @ b.transpose(0, 2, 1)
+        out[start:start + 500] = np.min(np.sqrt(np.maximum(d2, 0.0)) - radii, axis=(1, 2))
     return out
 
 

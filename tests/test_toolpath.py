@@ -116,6 +116,13 @@ def test_step_limits_on_task_paths(plan, cfg):
 
 def test_arms_never_collide(plan, geometry, layout, cfg):
     clearance = arm_clearance(geometry, layout, cfg, plan.q_left, plan.q_right)
+    # The matmul form of the pairwise distances against the plain difference, on some samples.
+    from continuum_sim.toolpath import arm_envelope
+
+    pl, rl = arm_envelope(geometry, layout, cfg, "left", plan.q_left[::97])
+    pr, rr = arm_envelope(geometry, layout, cfg, "right", plan.q_right[::97])
+    direct = np.min(np.linalg.norm(pl[:, :, None] - pr[:, None], axis=-1) - rl[:, None] - rr[None], axis=(1, 2))
+    np.testing.assert_allclose(clearance[::97], direct, atol=1e-9)
     assert clearance.min() > 0.005
     assert math.isclose(clearance.min(), plan.metrics["min_arm_clearance_m"], abs_tol=1e-12)
     assert plan.metrics["min_plate_clearance_left_m"] > 0.005

@@ -67,6 +67,15 @@ def test_backbone_distance_is_centre_gap_minus_radii():
     assert met.min_backbone_distance(a, np.array([0.1, 0.1]), b, np.array([0.05, 0.05])) == pytest.approx(0.35)
 
 
+def test_backbone_distance_series_equals_the_per_frame_distance():
+    rng = np.random.default_rng(5)
+    a, b = rng.normal(size=(300, 7, 3)), rng.normal(size=(300, 5, 3))  # > one chunk of frames
+    ra, rb = rng.uniform(0.0, 0.2, 7), rng.uniform(0.0, 0.2, 5)
+    series = met.min_backbone_distances(a, ra, b, rb, chunk=64)
+    direct = [np.min(np.linalg.norm(a[i][:, None] - b[i][None], axis=-1) - ra[:, None] - rb[None]) for i in range(300)]
+    np.testing.assert_allclose(series, direct, atol=1e-14)
+
+
 def test_error_stats():
     stats = met.error_stats(np.array([0.001, 0.002, 0.002]))
     assert stats["mean"] == pytest.approx(5 / 3) and stats["max"] == pytest.approx(2.0)

@@ -36,7 +36,7 @@ from ..configio import ConfigError, require_range  # noqa: E402
 from ..geometry import ArmGeometry  # noqa: E402
 from ..layout import TaskLayout  # noqa: E402
 from . import tools as tools_mod  # noqa: E402
-from .arm import apply_simulation_options, arm_collision_bits, build_arm  # noqa: E402
+from .arm import apply_simulation_options, arm_collision_bits, build_arm, kerf_collision_bits  # noqa: E402
 from .options import ModelOptions, model_geometry  # noqa: E402
 from .tools import FOAM_PRIORITY, ToolOptions  # noqa: E402
 
@@ -238,6 +238,7 @@ def _add_plate(root: mjcf.RootElement, layout: TaskLayout, scene: SceneOptions, 
     body = root.worldbody.add("body", name=PLATE_BODY, pos=tuple(origin))
     _box(body, "plate_main", (ext["x0"], ext["y0"], bottom), (ext["xk"], ext["y1"], top), origin, material="foam", **foam)
     _box(body, "plate_side", (ext["xk"], ext["yk"], bottom), (ext["x1"], ext["y1"], top), origin, material="foam", **foam)
+    cell_contype, cell_conaffinity = kerf_collision_bits()
     for i, cell in enumerate(kerf_cells(layout, scene.kerf_cell_length)):
         body.add(
             "geom",
@@ -247,6 +248,8 @@ def _add_plate(root: mjcf.RootElement, layout: TaskLayout, scene: SceneOptions, 
             pos=tuple(np.asarray(cell.centre) - origin),
             quat=_yaw_quat(cell.yaw),
             material="kerf",
+            contype=cell_contype,
+            conaffinity=cell_conaffinity,
             **foam,
         )
     for name, p in zip(("kerf_start", "kerf_corner", "kerf_end"), plate.kerf_polyline()):
@@ -311,6 +314,7 @@ def _attach_tool(
         plate.contact_solref,
         plate.contact_solimp,
         arm_collision_bits(arm),
+        pad_tilt_deg=layout.grasp.tilt_deg,
     )
     if tool_model is None:
         return
@@ -361,9 +365,6 @@ def build_scene(
     root = mjcf.RootElement(model=SCENE_MODEL)
     apply_simulation_options(root, options)
     root.compiler.autolimits = True
-    # Elliptic cones with a high impedance ratio: grasps that do not creep.
-    root.option.cone = "elliptic"
-    root.option.impratio = 10
     _add_assets_and_visuals(root, layout, scene)
     _add_environment(root, layout, scene)
     _add_plate(root, layout, scene, options.timestep)

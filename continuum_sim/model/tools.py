@@ -25,6 +25,7 @@ actuator is a tension-only position loop (force range [−F, 0]) like the arm ca
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from ..glbackend import choose_gl_backend
@@ -49,6 +50,7 @@ PAD_GEOMS = ("pad_a", "pad_b")
 # Collision priority: the cutter's (frictionless) parameters win over the foam's, the
 # foam's (soft) ones over everything else it touches.
 CUTTER_PRIORITY = 2
+PAD_PRIORITY = 2  # the gripper pads' (near-hard) contact wins over the foam's
 FOAM_PRIORITY = 1
 
 
@@ -67,11 +69,19 @@ class ToolOptions:
     gripper_jaw_travel: float = 0.0125  # per jaw, closing
     gripper_pad_length: float = 0.020  # pad extent along tool z (centred on the TCP)
     gripper_pad_width: float = 0.016  # pad extent along tool y
+    # Pad thickness: the finger plates stand this far behind the pad faces, clear of a plate
+    # gripped at the grasp tilt (30° over the 12 mm grasp depth brings it ~8 mm closer).
+    gripper_pad_thickness: float = 0.010
     gripper_spring: float = 20.0  # N/m, opening spring per jaw
     gripper_damping: float = 2.0  # N·s/m per jaw
     gripper_kp: float = 400.0  # N/m, cable position-loop gain
     gripper_max_force: float = 2.0  # N, largest cable tension (foam sample < 1 g)
     pad_friction: float = 1.0  # sliding friction of the jaw pads
+    # Pad contact (wins over the foam's soft contact): nearly hard, so a ~2 N grip sinks
+    # < 0.5 mm into the 0.7 g sample. MuJoCo scales contact softness by the bodies' masses;
+    # with the foam's own parameters the pads sank 3-5 mm and the jaws closed onto their stops.
+    pad_solref: tuple[float, float] = (0.008, 1.0)
+    pad_solimp: tuple[float, float, float] = (0.99, 0.999, 0.0005)
 
     def __post_init__(self) -> None:
         require_range("housing_radius", self.housing_radius, 0.0, 0.1)
@@ -85,11 +95,12 @@ class ToolOptions:
         require_range("gripper_jaw_travel", self.gripper_jaw_travel, 0.0, self.gripper_open_gap / 2, high_inclusive=False)
         require_range("gripper_pad_length", self.gripper_pad_length, 0.0, 0.2)
         require_range("gripper_pad_width", self.gripper_pad_width, 0.0, 0.2)
+        require_range("gripper_pad_thickness", self.gripper_pad_thickness, 0.0, 0.05)
         require_range("gripper_spring", self.gripper_spring, 0.0, 1.0e5, low_inclusive=True)
         require_range("gripper_damping", self.gripper_damping, 0.0, 1.0e4, low_inclusive=True)
         require_positive("gripper_kp", self.gripper_kp)
         require_positive("gripper_max_force", self.gripper_max_force)
-        require_range("pad_friction", self.pad_friction, 0.0, 10.0)
+        require_range("pad_friction", self.pad_friction, 0.0, 10.0, low_inclusive=True)
 
     @property
     def gripper_closed_gap(self) -> float:
@@ -103,8 +114,13 @@ class ToolOptions:
 
     @property
     def gripper_cable_closed(self) -> float:
-        """Cable command past full closure: on an object the grip force is the force limit."""
-        return -2 * self.gripper_jaw_travel
+        """Cable command past full closure by twice the force limit's stretch (Fmax / kp).
+
+        Whatever the jaws' positions on the object (one may rest on its end stop when the
+        object sits off-centre), the position loop then saturates: the grip force is the
+        force limit, not the small remainder of a command that ends at full closure.
+        """
+        return -2 * self.gripper_jaw_travel - 2 * self.gripper_max_force / self.gripper_kp
 
     def gripper_cable_for_gap(self, gap: float) -> float:
         """Cable command (tendon length) that closes the pads to ``gap`` (clipped to travel)."""
@@ -236,11 +252,19 @@ def build_grinder(
 
 
 def build_gripper(
-    geometry: ArmGeometry, options: ModelOptions, tools: ToolOptions, collision: tuple[int, int] = (1, 1)
+    geometry: ArmGeometry,
+    options: ModelOptions,
+    tools: ToolOptions,
+    collision: tuple[int, int] = (1, 1),
+    pad_tilt_deg: float = 0.0,
 ) -> mjcf.RootElement:
     """The two-jaw gripper: pads centred on the TCP, jaws closing along the tool x axis.
 
     ``collision`` is the carrying arm's (contype, conaffinity), as for the grinder.
+    ``pad_tilt_deg``: the pads are turned by this angle about the tool y axis so that they
+    lie flat on a plate whose normal is that far from the closing axis (the task's grasp
+    tilt, ``GraspLayout.tilt_deg``). Untilted pads touch such a plate on one edge each: a
+    line contact the sample pivots about, and a wedge that squeezes it out.
     """
     length = geometry.tools.gripper_length
     half_disk = geometry.disk_thickness / 2
@@ -253,14 +277,18 @@ def build_gripper(
             f"pads would reach into the palm: need gripper_length − pad_length/2 > {palm_top + 0.004:g} m",
         )
     finger_t = 0.004  # finger plate thickness along x
-    pad_t = 0.003
-    finger_top = length + pad_half
+    pad_t = tools.gripper_pad_thickness
+    # The fingers end at the pad centre line: beyond it a finger tilted against the plate
+    # would reach the plate before its pad does.
+    finger_top = length
     finger_half_z = (finger_top - palm_top) / 2
     finger_x = tools.gripper_open_gap / 2 + pad_t + finger_t / 2  # finger centre, open
     palm_half_x = finger_x + finger_t / 2 + 0.002
     palm_half_y = tools.gripper_pad_width / 2 + 0.002
     palm_mass = 0.6 * options.gripper_mass
     jaw_mass = (options.gripper_mass - palm_mass) / 2
+    tilt = math.radians(pad_tilt_deg)
+    pad_quat = (math.cos(-tilt / 2), 0.0, math.sin(-tilt / 2), 0.0)  # about tool y by −tilt
 
     root = mjcf.RootElement(model=GRIPPER)
     root.default.geom.contype, root.default.geom.conaffinity = collision
@@ -287,6 +315,9 @@ def build_gripper(
             springref=-0.1 * tools.gripper_jaw_travel,  # preloaded: open jaws rest firmly on their stop
             damping=tools.gripper_damping,
             armature=1e-4,
+            # A hard end stop: the default soft limit let a jaw overrun by 3 mm at full grip force.
+            solreflimit=(0.01, 1.0),
+            solimplimit=(0.95, 0.99, 0.001, 0.5, 2),
         )
         jaw.add(
             "geom",
@@ -302,9 +333,14 @@ def build_gripper(
             name=f"pad_{side}",
             type="box",
             size=(pad_t / 2, tools.gripper_pad_width / 2, pad_half),
-            pos=(-sign * (finger_t / 2 + pad_t / 2), 0, length),
+            # Turned about the centre of its gripping face, which stays on the closing line.
+            pos=(-sign * (finger_t / 2 + pad_t) + sign * pad_t / 2 * math.cos(tilt), 0, length + sign * pad_t / 2 * math.sin(tilt)),
+            quat=pad_quat,
             mass=0.2 * jaw_mass,
             friction=(tools.pad_friction, 0.005, 0.0001),
+            priority=PAD_PRIORITY,
+            solref=tools.pad_solref,
+            solimp=tools.pad_solimp,
             rgba=(0.15, 0.15, 0.15, 1.0),
         )
     palm.add("site", name="tip", pos=(0, 0, length), size=(0.0015,), rgba=(1, 0, 0, 1))
@@ -316,7 +352,7 @@ def build_gripper(
         name=GRIPPER_CABLE,
         tendon=cable,
         kp=tools.gripper_kp,
-        ctrlrange=(-2 * tools.gripper_jaw_travel, 0.0),
+        ctrlrange=(tools.gripper_cable_closed, 0.0),
         ctrllimited=True,
         forcerange=(-tools.gripper_max_force, 0.0),
         forcelimited=True,
@@ -333,12 +369,13 @@ def build_tool(
     contact_solref: tuple[float, float],
     contact_solimp: tuple[float, float, float],
     collision: tuple[int, int] = (1, 1),
+    pad_tilt_deg: float = 0.0,
 ) -> mjcf.RootElement | None:
     """The named tool's model (``None`` for ``"none"``)."""
     if tool == GRINDER:
         return build_grinder(geometry, options, tools, cutter_diameter, contact_solref, contact_solimp, collision)
     if tool == GRIPPER:
-        return build_gripper(geometry, options, tools, collision)
+        return build_gripper(geometry, options, tools, collision, pad_tilt_deg)
     if tool == "none":
         return None
     raise ConfigError("tool", f"must be one of 'grinder', 'gripper', 'none' (got {tool!r})")

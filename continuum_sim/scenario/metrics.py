@@ -48,8 +48,20 @@ def min_backbone_distance(centres_a: Array, radii_a: Array, centres_b: Array, ra
     A sphere of the disk's radius contains the disk, so this is a conservative (never
     larger than the true) clearance between the arms.
     """
-    d = np.linalg.norm(centres_a[:, None, :] - centres_b[None, :, :], axis=-1)
-    return float(np.min(d - radii_a[:, None] - radii_b[None, :]))
+    return float(min_backbone_distances(centres_a[None], radii_a, centres_b[None], radii_b)[0])
+
+
+def min_backbone_distances(centres_a: Array, radii_a: Array, centres_b: Array, radii_b: Array, chunk: int = 256) -> Array:
+    """``min_backbone_distance`` of every frame of (N, na, 3) and (N, nb, 3) disk-centre series."""
+    centres_a = np.asarray(centres_a, dtype=float)
+    centres_b = np.asarray(centres_b, dtype=float)
+    radii = np.asarray(radii_a)[:, None] + np.asarray(radii_b)[None, :]
+    out = np.empty(len(centres_a))
+    for start in range(0, len(centres_a), chunk):  # bounded memory: chunk × na × nb × 3
+        a, b = centres_a[start : start + chunk], centres_b[start : start + chunk]
+        d = np.linalg.norm(a[:, :, None, :] - b[:, None, :, :], axis=-1)
+        out[start : start + chunk] = np.min(d - radii, axis=(1, 2))
+    return out
 
 
 def per_stage(values: Array, stage: Array, stage_names: tuple[str, ...]) -> dict[str, Any]:

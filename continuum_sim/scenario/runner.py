@@ -298,6 +298,7 @@ def run_scenario(
             recorder_video.close()
 
     series = recorder.arrays()
+    _derive(series, handles)
     wall = time.perf_counter() - wall_start
     metrics = compute_metrics(series, plan, config, cutter, moved_early, stages, wall)
     if failure is not None:
@@ -307,6 +308,17 @@ def run_scenario(
     if failure is not None:
         raise SimulationDiverged(f"simulation diverged: {failure}; partial results kept in {out_dir}")
     return metrics
+
+
+def _derive(series: dict[str, np.ndarray], handles: SceneHandles) -> None:
+    """Series computed from the raw records after the run, vectorised (not per tick)."""
+    if not series:
+        return
+    for arm in ARMS:
+        series[f"{arm}_q_cmd"] = kin.from_bending(series.pop(f"{arm}_w_cmd"))
+    series["arm_distance"] = met.min_backbone_distances(
+        series["left_disk_pos"], handles.disk_radii["left"], series["right_disk_pos"], handles.disk_radii["right"]
+    )
 
 
 def _relative_pose(data: mujoco.MjData, plate: int, sample: int) -> np.ndarray:
@@ -319,16 +331,13 @@ def _record(recorder: _Recorder, model, data, handles: SceneHandles, plan, index
     for arm, q_plan, tcp_plan in (("left", plan.q_left, plan.tcp_left), ("right", plan.q_right, plan.tcp_right)):
         site = handles.tcp_site[arm]
         values[f"{arm}_q_plan"] = q_plan[index]
-        values[f"{arm}_q_cmd"] = kin.from_bending(controllers[arm].commanded_bending(q_plan[index]))
+        values[f"{arm}_w_cmd"] = controllers[arm].last_command  # bending coordinates; q_cmd after the run
         values[f"{arm}_tcp_plan"] = tcp_plan[index]
         values[f"{arm}_tcp_pos"] = data.site_xpos[site]
         values[f"{arm}_tcp_mat"] = data.site_xmat[site].reshape(3, 3)
         values[f"{arm}_cable_length"] = data.ten_length[handles.cable_tendons[arm]]
         values[f"{arm}_cable_tension"] = -data.actuator_force[handles.cable_actuators[arm]]
         values[f"{arm}_disk_pos"] = data.xpos[handles.disk_bodies[arm]]
-    values["arm_distance"] = met.min_backbone_distance(
-        values["left_disk_pos"], handles.disk_radii["left"], values["right_disk_pos"], handles.disk_radii["right"]
-    )
     values["sample_pos"] = data.xpos[handles.sample_body]
     values["cells_remaining"] = cutter.cells_remaining
     values["spindle_speed"] = cutter.spindle_speed
