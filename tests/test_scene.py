@@ -17,7 +17,7 @@ from continuum_sim.model.scene import (
     look_at,
 )
 from continuum_sim.model.state import set_arm_configuration
-from continuum_sim.model.tools import ToolOptions
+from continuum_sim.model.tools import JAW_OPEN_REST, ToolOptions
 from model_helpers import carry_with_mocap, compile_root, rigid_arm
 
 import mujoco  # noqa: E402  (continuum_sim.model.scene chose the GL backend first)
@@ -239,7 +239,10 @@ def test_gripper_springs_open_and_cable_closes(carried_gripper):
     data.ctrl[cable] = tools.gripper_cable_open
     while data.time < 0.5:
         mujoco.mj_step(model, data)
-    np.testing.assert_allclose(data.qpos[jaws], 0.0, atol=2e-4)  # springs open the jaws
+    np.testing.assert_allclose(data.qpos[jaws], JAW_OPEN_REST, atol=2e-4)  # springs open the jaws
+    jaw_joints = {model.joint(f"right/gripper/jaw_{s}").id for s in "ab"}
+    limits = [i for i in range(data.nefc) if data.efc_type[i] == mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT]
+    assert not any(data.efc_id[i] in jaw_joints for i in limits)  # open, but not resting on the stops
     data.ctrl[cable] = tools.gripper_cable_for_gap(0.012)
     while data.time < 1.5:
         mujoco.mj_step(model, data)

@@ -165,6 +165,7 @@ def apply_simulation_options(root, options: ModelOptions) -> None:
     # of seconds (the gripper on the welded sample) slid ~20 mm at impratio 10.
     root.option.cone = "elliptic"
     root.option.impratio = options.impratio
+    root.option.jacobian = options.jacobian
     root.compiler.angle = "radian"
     root.size.memory = "64M"
 

@@ -32,6 +32,7 @@ class ModelOptions:
     gripper_mass: float = 0.06  # kg
     timestep: float = 0.001
     integrator: Literal["implicitfast", "implicit", "Euler", "RK4"] = "implicitfast"
+    jacobian: Literal["auto", "dense", "sparse"] = "auto"  # MuJoCo's constraint Jacobian storage
     impratio: float = 100.0  # friction-to-normal impedance ratio (elliptic cones): high = little frictional creep
     tendons: bool = True  # False: joints only (for benchmarks and pure-beam tests)
 
@@ -56,6 +57,8 @@ class ModelOptions:
         require_range("gripper_mass", self.gripper_mass, 0.0, 10.0)
         require_range("timestep", self.timestep, 0.0, 0.01)
         require_range("impratio", self.impratio, 1.0, 1000.0, low_inclusive=True)
+        if self.jacobian not in ("auto", "dense", "sparse"):
+            raise ConfigError("jacobian", f"must be one of auto, dense, sparse (got {self.jacobian!r})")
         if self.integrator not in ("implicitfast", "implicit", "Euler", "RK4"):
             raise ConfigError("integrator", f"must be one of implicitfast, implicit, Euler, RK4 (got {self.integrator!r})")
 

@@ -50,6 +50,7 @@ PAD_GEOMS = ("pad_a", "pad_b")
 # Collision priority: the cutter's (frictionless) parameters win over the foam's, the
 # foam's (soft) ones over everything else it touches.
 CUTTER_PRIORITY = 2
+JAW_OPEN_REST = 5e-4  # m, where the spring holds an open jaw (from its stop, closing)
 PAD_PRIORITY = 2  # the gripper pads' (near-hard) contact wins over the foam's
 FOAM_PRIORITY = 1
 
@@ -312,7 +313,9 @@ def build_gripper(
             range=(0.0, tools.gripper_jaw_travel),
             limited=True,
             stiffness=tools.gripper_spring,
-            springref=-0.1 * tools.gripper_jaw_travel,  # preloaded: open jaws rest firmly on their stop
+            # Open jaws rest just inside their stop: resting on it would keep a limit
+            # constraint, and with it the whole arm, in the solver every step.
+            springref=JAW_OPEN_REST,
             damping=tools.gripper_damping,
             armature=1e-4,
             # A hard end stop: the default soft limit let a jaw overrun by 3 mm at full grip force.

@@ -32,9 +32,11 @@ def _scenario_model_options() -> ModelOptions:
     would be faster still but lower the cable-compression buckling load ∝ n² (the
     cables' pre-tension then softens the arm visibly). 4 ms: implicitfast integrates the
     cable and joint damping implicitly, and every scenario metric stays within its goal
-    at 2, 3 and 4 ms (at 5 ms the grasp loses the sample); see README "Speed".
+    at 2, 3 and 4 ms (at 5 ms the grasp loses the sample); see README "Speed". Dense
+    constraint Jacobians: the solver's islands here are one arm (60+ dofs, a dense block
+    anyway), and the sparse path measured 1.5-2.5× slower in the constraint phase.
     """
-    return ModelOptions(joint="hinge_pair", timestep=0.004)
+    return ModelOptions(joint="hinge_pair", timestep=0.004, jacobian="dense")
 
 
 @dataclass(frozen=True)
