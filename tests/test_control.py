@@ -127,3 +127,22 @@ def test_holding_keeps_the_command_the_grasp_closed_on():
         np.testing.assert_allclose(held, first, atol=1e-15)
     released = controller.update(q, target, off, target[:3, :3], 0.008)
     assert np.max(np.abs(released - first)) > 1e-6  # integrating again once free
+
+
+def test_roll_free_loop_ignores_a_roll_about_the_tool_axis():
+    """The grinder's loop corrects the tool point and axis, never a roll about the axis."""
+    from continuum_sim import kinematics as kin
+
+    geometry = ArmGeometry.default()
+    q = np.radians([30, 0, 40, 180, 50, 90])
+    target = tool_centre_pose(geometry, q, "grinder")
+    rolled = target[:3, :3] @ kin.exp_so3([0.0, 0.0, 0.05])  # 3° about the tool's own z
+    tilted = target[:3, :3] @ kin.exp_so3([0.05, 0.0, 0.0])  # 3° of axis error
+    for roll_free, expect_roll_response in ((True, False), (False, True)):
+        controller = ArmController(geometry, ControlConfig(), np.eye(4), geometry.tools.grinder_length, 3.0e4, roll_free=roll_free)
+        rest = controller.update(q, target, target[:3, 3], target[:3, :3], 0.0)
+        after_roll = controller.update(q, target, target[:3, 3], rolled, 0.008)
+        assert (np.max(np.abs(after_roll - rest)) > 1e-7) == expect_roll_response
+        controller.reset()
+        after_tilt = controller.update(q, target, target[:3, 3], tilted, 0.008)
+        assert np.max(np.abs(after_tilt - rest)) > 1e-7  # an axis error is always corrected

@@ -208,7 +208,10 @@ def run_scenario(
     bases = {arm: config.layout.mount(arm).base_transform() for arm in ARMS}
     tools = {arm: config.layout.mount(arm).tool for arm in ARMS}
     controllers = {
-        arm: ArmController(geom, config.control, bases[arm], config.arm.tools.length(tools[arm]), config.model.cable_kp)
+        arm: ArmController(
+            geom, config.control, bases[arm], config.arm.tools.length(tools[arm]), config.model.cable_kp,
+            roll_free=tools[arm] == "grinder",  # the cutter is axisymmetric (planned in 'axis' mode too)
+        )
         for arm in ARMS
     }
     q_plans = {"left": plan.q_left, "right": plan.q_right}
