@@ -78,11 +78,12 @@ class ToolOptions:
     gripper_kp: float = 400.0  # N/m, cable position-loop gain
     gripper_max_force: float = 2.0  # N, largest cable tension (foam sample < 1 g)
     pad_friction: float = 1.0  # sliding friction of the jaw pads
-    # Pad contact (wins over the foam's soft contact): nearly hard, so a ~2 N grip sinks
-    # < 0.5 mm into the 0.7 g sample. MuJoCo scales contact softness by the bodies' masses;
-    # with the foam's own parameters the pads sank 3-5 mm and the jaws closed onto their stops.
+    # Pad contact (wins over the foam's soft contact): stiff enough that the 2 N grip sinks
+    # ~1 mm into the 0.7 g sample. MuJoCo scales contact softness by the bodies' masses;
+    # with the foam's own parameters the pads sank 3-5 mm and the jaws closed onto their
+    # stops. Harder still (0.99, 0.999) tripled the solver iterations while carrying.
     pad_solref: tuple[float, float] = (0.008, 1.0)
-    pad_solimp: tuple[float, float, float] = (0.99, 0.999, 0.0005)
+    pad_solimp: tuple[float, float, float] = (0.95, 0.99, 0.001)
 
     def __post_init__(self) -> None:
         require_range("housing_radius", self.housing_radius, 0.0, 0.1)
