@@ -123,7 +123,7 @@ def _cmd_build_model(args: argparse.Namespace) -> int:
         from .scenario.config import ScenarioConfig
 
         config = ScenarioConfig.from_toml(args.config)
-        paths = export_models(args.out, config.arm, config.layout, config.model)
+        paths = export_models(args.out, config.arm, config.layout, config.model, config.scene)
     if not args.models_only:
         from pathlib import Path
 

@@ -44,3 +44,28 @@ def test_shipped_toml_is_regenerated_text():
 
     shipped = resources.files("continuum_sim").joinpath("data/scenario.toml").read_text()
     assert shipped == default_scenario_toml(), "run `continuum-sim build-model` to regenerate"
+
+
+def test_scene_options_reach_the_model_and_the_runner(tmp_path):
+    """Tool settings live in the scenario config (saved with every run) and reach the model."""
+    from continuum_sim.scenario.runner import build_scene_model
+
+    path = tmp_path / "stronger_grip.toml"
+    path.write_text("[scene.tools]\ngripper_max_force = 3.5\npad_friction = 0.8\n")
+    config = ScenarioConfig.from_toml(path)
+    assert config.scene.tools.gripper_max_force == 3.5
+    _, model = build_scene_model(config)
+    cable = model.actuator("right/gripper/cable")
+    assert cable.forcerange[0] == -3.5
+    assert cable.ctrlrange[0] == config.scene.tools.gripper_cable_closed  # the runner's closing command is in range
+    assert model.geom("right/gripper/pad_a").friction[0] == 0.8
+    saved = tmp_path / "saved.toml"
+    config.save_toml(saved)
+    assert ScenarioConfig.from_toml(saved) == config
+
+
+def test_bad_scene_option_names_the_dotted_field(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text("[scene.tools]\ngripper_max_force = -1.0\n")
+    with pytest.raises(ConfigError, match="gripper_max_force"):
+        ScenarioConfig.from_toml(path)

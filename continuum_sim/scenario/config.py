@@ -18,6 +18,7 @@ from ..control import ControlConfig
 from ..geometry import ArmGeometry
 from ..layout import TaskLayout
 from ..model.options import ModelOptions
+from ..model.scene import SceneOptions
 from ..toolpath import PlanConfig
 
 
@@ -71,6 +72,7 @@ class ScenarioConfig:
     arm: ArmGeometry = field(default_factory=ArmGeometry)
     layout: TaskLayout = field(default_factory=TaskLayout)
     model: ModelOptions = field(default_factory=_scenario_model_options)
+    scene: SceneOptions = field(default_factory=SceneOptions)  # tools (gripper, grinder), kerf cells, foam
     plan: PlanConfig = field(default_factory=PlanConfig)
     control: ControlConfig = field(default_factory=ControlConfig)
     simulation: SimulationConfig = field(default_factory=SimulationConfig)

@@ -131,7 +131,7 @@ def build_scene_model(config: ScenarioConfig):
     """(mjcf root, compiled MjModel) of the configured scene."""
     from ..model.scene import build_scene
 
-    root = build_scene(config.arm, config.layout, config.model)
+    root = build_scene(config.arm, config.layout, config.model, config.scene)
     model = mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
     return root, model
 
@@ -197,9 +197,7 @@ def run_scenario(
     data = mujoco.MjData(model)
     handles = _handles(model, config)
     from ..model.cutting import KerfCutter
-    from ..model.tools import ToolOptions
-
-    tool_options = ToolOptions()
+    tool_options = config.scene.tools
     dt = model.opt.timestep
     control_every = max(1, int(round(1.0 / (config.control.rate_hz * dt))))
     record_every = max(1, int(round(1.0 / (config.simulation.record_hz * dt))))
