@@ -286,7 +286,8 @@ def grinder_poses(layout: TaskLayout, cfg: PlanConfig) -> dict[str, Array]:
     The vertical spindle keeps the grinder on a thin ring of reach around its base (its
     TCP height range at a given distance is only ~6 cm), so every move near the plate is
     horizontal at the cutting height: approach toward the front edge from outside, cut,
-    leave beyond the side edge, and return along the (now empty) kerf to the start.
+    leave beyond the side edge, wait there while the sample is carried off, and return
+    along the (now empty) kerf to the start.
     """
     plate = layout.plate
     kerf = plate.kerf_polyline()
@@ -383,19 +384,20 @@ def plan_task(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig | None 
     m_settle = _dwell("left", S["milling"], "approach", m_app.q_end, cfg.dwell_before_cut, **spin)
     m_cut = grinder.path_move(S["milling"], "cutting", kerf, m_app.q_end, cfg.cut_speed, cutting=True, **spin)
     m_exit = grinder.path_move(S["milling"], "exit", [gp["side_edge"], gp["cut_end"]], m_cut.q_end, cfg.fast_speed, **spin)
-    m_ret = grinder.path_move(S["milling"], "return", [gp["cut_end"]] + kerf[::-1] + [gp["pre_cut"]], m_exit.q_end,
-                              cfg.fast_speed, **spin)
-    timeline.append((S["milling"], [m_spin, m_tr, m_app, m_settle, m_cut, m_exit, m_ret]))
+    timeline.append((S["milling"], [m_spin, m_tr, m_app, m_settle, m_cut, m_exit]))
     steps.update()
-    # 4 retrieval
+    # 4 retrieval: the grinder waits beyond the side edge while the sample is carried off
+    # (returning along the kerf first brushed the freed sample, which still sat beside it).
     m_carry = gripper.path_move(S["retrieval"], "carry", [hp["grasp"], hp["carried"]], m_close.q_end, cfg.fast_speed,
                                 gripper_closed=True)
     timeline.append((S["retrieval"], [m_carry]))
     steps.update()
-    # 5 return
+    # 5 return: the grinder back along the empty kerf (spindle off), then home.
+    m_ret = grinder.path_move(S["return"], "return", [gp["cut_end"]] + kerf[::-1] + [gp["pre_cut"]], m_exit.q_end,
+                              cfg.fast_speed)
     m_back = _joint_move("left", S["return"], "return", m_ret.q_end, qL0, cfg, grinder.phase)
     m_final = _dwell("left", S["return"], "final", qL0, cfg.dwell_final)
-    timeline.append((S["return"], [m_back, m_final]))
+    timeline.append((S["return"], [m_ret, m_back, m_final]))
     steps.update()
     steps.close()
 
