@@ -42,6 +42,12 @@ class ControlConfig:
     orientation_weight: float = 0.1  # m/rad: how much 1 rad of tool tilt counts against 1 m
     damping: float = 1e-4  # damped-least-squares regulariser (m²)
     max_correction_deg: float = 15.0  # bound on the correction per section (bending angle)
+    # Tension keeping (closed mode): each section's three cables are shortened together
+    # (a common mode that does not bend the section) until its slackest cable pulls at
+    # least min_tension, as measured by the motors; 0 switches it off.
+    min_tension: float = 3.0  # N
+    tension_gain: float = 5.0  # 1/s
+    max_extra_tension: float = 30.0  # N, bound on the added common-mode pull per section
 
     def __post_init__(self) -> None:
         if self.mode not in ("open", "closed"):
@@ -53,6 +59,9 @@ class ControlConfig:
         require_positive("orientation_weight", self.orientation_weight)
         require_range("damping", self.damping, 0.0, 1.0, low_inclusive=True)
         require_range("max_correction_deg", self.max_correction_deg, 0.0, 90.0, low_inclusive=True)
+        require_range("min_tension", self.min_tension, 0.0, 1000.0, low_inclusive=True)
+        require_range("tension_gain", self.tension_gain, 0.0, 1000.0, low_inclusive=True)
+        require_range("max_extra_tension", self.max_extra_tension, 0.0, 1000.0, low_inclusive=True)
 
 
 def _rotation_error(R_target: Array, R_actual: Array) -> Array:
@@ -119,6 +128,9 @@ class ArmController:
         self.max_correction = np.radians(config.max_correction_deg)
         self._pose = kin.ArmKernel(geometry, self.tool_length)
         self._cables = kin.CableKernel(geometry)
+        self.cable_kp = float(cable_kp)
+        self._cable_section = kin._cable_sections(geometry)
+        self.extra = np.zeros(geometry.n_sections)  # common-mode shortening per section (m), tension keeping
         self._regulariser = config.damping * np.eye(5 if roll_free else 6)
         self._holding = False
         self.last_command: list[float] = []  # bending coordinates of the last set-points (for recording)
@@ -126,6 +138,7 @@ class ArmController:
     def reset(self) -> None:
         self.correction[:] = 0.0
         self.proportional[:] = 0.0
+        self.extra[:] = 0.0
         self._holding = False
 
     def commanded_bending(self, q_plan: Array) -> Array:
@@ -148,9 +161,19 @@ class ArmController:
         return w
 
     def update(
-        self, q_plan: Array, tcp_plan: Array, tcp_pos: Array, tcp_mat: Array, dt: float, holding: bool = False
+        self,
+        q_plan: Array,
+        tcp_plan: Array,
+        tcp_pos: Array,
+        tcp_mat: Array,
+        dt: float,
+        holding: bool = False,
+        tensions: Array | None = None,
     ) -> Array:
         """One control tick: returns the cable-length set-points (actuator controls).
+
+        ``tensions``: the cables' measured tensions (N, ≥ 0), for tension keeping in
+        closed mode; None leaves the common-mode shortening as it is.
 
         ``holding``: the tool grips something fixed (the gripper on the still-welded
         sample). The command is then held where it was when the grasp closed (proportional
@@ -169,7 +192,22 @@ class ArmController:
             self._integrate(w, tcp_plan, tcp_pos, tcp_mat, dt)
             w = self._commanded(q_plan)
         self.last_command = w
-        return self._cables.lengths(w) - self.offset
+        if self.config.mode == "closed" and tensions is not None and dt > 0.0 and self.config.min_tension > 0.0:
+            self._keep_tension(np.asarray(tensions, dtype=float), dt)
+        return self._cables.lengths(w) - self.offset - self.extra[self._cable_section]
+
+    def _keep_tension(self, tensions: Array, dt: float) -> None:
+        """Integrate each section's common-mode shortening toward min_tension on its slackest cable.
+
+        The three cables of a section span its two bending coordinates plus one common
+        mode; shortening all three by the same length raises their tensions together
+        (by kp per metre) and leaves the bend alone, so the pose loop is not disturbed.
+        """
+        cfg = self.config
+        for k in range(len(self.extra)):
+            slackest = float(tensions[self._cable_section == k].min())
+            rate = cfg.tension_gain * (cfg.min_tension - slackest) / self.cable_kp
+            self.extra[k] = min(max(self.extra[k] + rate * dt, 0.0), cfg.max_extra_tension / self.cable_kp)
 
     def _integrate(self, w, tcp_plan: Array, tcp_pos: Array, tcp_mat: Array, dt: float) -> None:
         """Integrate the weighted tool-pose error through the PCC Jacobian (damped least squares)."""

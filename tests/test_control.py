@@ -146,3 +146,26 @@ def test_roll_free_loop_ignores_a_roll_about_the_tool_axis():
         controller.reset()
         after_tilt = controller.update(q, target, target[:3, 3], tilted, 0.008)
         assert np.max(np.abs(after_tilt - rest)) > 1e-7  # an axis error is always corrected
+
+
+def test_tension_keeping_shortens_only_the_slack_section_in_common_mode():
+    geometry = ArmGeometry.default()
+    config = ControlConfig(min_tension=3.0, tension_gain=5.0, max_extra_tension=30.0)
+    controller = ArmController(geometry, config, np.eye(4), geometry.tools.grinder_length, 3.0e4)
+    q = np.radians([30, 0, 40, 180, 50, 90])
+    target = tool_centre_pose(geometry, q, "grinder")
+    before = controller.update(q, target, target[:3, 3], target[:3, :3], 0.0)
+    tensions = np.full(9, 10.0)
+    tensions[4] = 0.0  # one middle-section cable slack
+    after = controller.update(q, target, target[:3, 3], target[:3, :3], 0.008, tensions=tensions)
+    shift = before - after
+    expected = 5.0 * 3.0 / 3.0e4 * 0.008  # gain · deficit / kp · dt
+    np.testing.assert_allclose(shift[3:6], expected, rtol=1e-9)  # the middle section's three cables, equally
+    np.testing.assert_allclose(shift[[0, 1, 2, 6, 7, 8]], 0.0, atol=1e-15)
+    for _ in range(5000):  # bounded by max_extra_tension / kp
+        controller.update(q, target, target[:3, 3], target[:3, :3], 0.008, tensions=tensions)
+    assert controller.extra[1] == pytest.approx(30.0 / 3.0e4)
+    # Open loop is the paper's method: no tension keeping.
+    open_loop = ArmController(geometry, ControlConfig(mode="open"), np.eye(4), geometry.tools.grinder_length, 3.0e4)
+    open_loop.update(q, target, target[:3, 3], target[:3, :3], 0.008, tensions=tensions)
+    assert not open_loop.extra.any()

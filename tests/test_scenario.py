@@ -29,6 +29,10 @@ def test_closed_loop_scenario_meets_the_task(closed_run):
     assert metrics["cutting_tip_error_mm"]["mean"] <= 0.25
     assert metrics["spindle_axis_error_deg"]["max"] <= 1.0
     assert metrics["max_cable_tension_n"] <= ScenarioConfig().model.cable_max_force
+    # Tension keeping: cables go slack only for moments (grasp closing, sample release).
+    series = np.load(out / "trajectory.npz")
+    tensions = np.concatenate([series["left_cable_tension"], series["right_cable_tension"]], axis=1)
+    assert np.mean(np.any(tensions < 0.5, axis=1)) < 0.01
     # The sample comes free only when the last kerf cell goes, during the cut.
     series = np.load(out / "trajectory.npz")
     detach = metrics["detach_time_s"]

@@ -231,7 +231,7 @@ def run_scenario(
             site = handles.tcp_site[arm]
             data.ctrl[handles.cable_actuators[arm]] = controllers[arm].update(
                 q_plans[arm][index], tcp_plans[arm][index], data.site_xpos[site], data.site_xmat[site], tick_dt,
-                holding[arm],
+                holding[arm], -data.actuator_force[handles.cable_actuators[arm]],
             )
         data.ctrl[handles.gripper_actuator] = (
             tool_options.gripper_cable_closed if plan.gripper_closed[index] else tool_options.gripper_cable_open
