@@ -129,7 +129,7 @@ class ArmController:
         self._pose = kin.ArmKernel(geometry, self.tool_length)
         self._cables = kin.CableKernel(geometry)
         self.cable_kp = float(cable_kp)
-        self._cable_section = kin._cable_sections(geometry)
+        self._cable_section = kin.cable_sections(geometry)
         self.extra = np.zeros(geometry.n_sections)  # common-mode shortening per section (m), tension keeping
         self._regulariser = config.damping * np.eye(5 if roll_free else 6)
         self._holding = False

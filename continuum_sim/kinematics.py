@@ -330,14 +330,15 @@ def jacobian(geometry: ArmGeometry, q: ArrayLike, base: ArrayLike | None = None,
 
 
 # ---------------------------------------------------------------------- cables
-def _cable_sections(geometry: ArmGeometry) -> Array:
+def cable_sections(geometry: ArmGeometry) -> Array:
+    """Section index of every cable (three per section, base to tip)."""
     return np.repeat(np.arange(geometry.n_sections), 3)
 
 
 def straight_cable_lengths(geometry: ArmGeometry) -> Array:
     """(n_cables,) cable lengths of the straight arm: Σ of the lengths of the sections passed."""
     cumulative = np.cumsum([s.length for s in geometry.sections])
-    return cumulative[_cable_sections(geometry)]
+    return cumulative[cable_sections(geometry)]
 
 
 def segment_cable_lengths_bending(geometry: ArmGeometry, w: ArrayLike) -> Array:
@@ -360,7 +361,7 @@ def cable_lengths_bending(geometry: ArmGeometry, w: ArrayLike) -> Array:
     """(..., n_cables) cable lengths from bending coordinates."""
     seg = segment_cable_lengths_bending(geometry, w)
     counts = np.array([s.n_segments for s in geometry.sections], dtype=float)
-    passes = np.arange(geometry.n_sections)[:, None] <= _cable_sections(geometry)[None, :]  # (S, C)
+    passes = np.arange(geometry.n_sections)[:, None] <= cable_sections(geometry)[None, :]  # (S, C)
     return np.sum(seg * (counts[:, None] * passes), axis=-2)
 
 
@@ -547,7 +548,7 @@ class CableKernel:
 
     def __init__(self, geometry: ArmGeometry) -> None:
         holes = geometry.cable_holes()
-        cable_section = _cable_sections(geometry)
+        cable_section = cable_sections(geometry)
         pairs = [(m, c) for m in range(geometry.n_sections) for c in range(len(holes)) if cable_section[c] >= m]
         self._pair_section = np.array([m for m, _ in pairs], dtype=int)
         self._pair_holes = np.array([[holes[c][0], holes[c][1], 1.0] for _, c in pairs])
