@@ -62,7 +62,10 @@ class PlanConfig:
     lead_out: float = 0.012  # m: and ends this far beyond the side edge
     approach_length: float = 0.020  # m: horizontal approach toward the front edge before the cut start
     pregrasp_distance: float = 0.035  # m: the gripper backs off along its tool axis before the grasp
-    carry_offset: tuple[float, float, float] = (0.04, -0.03, -0.05)  # m, world: sample carried away (stage 4)
+    # m, world: sample carried away (stage 4), mostly sideways (-y) so it clears the grinder
+    # housing that waits beyond the side edge, below the plate ((0.04, -0.03, -0.05) grazed it)
+    carry_offset: tuple[float, float, float] = (0.02, -0.09, -0.03)
+    return_offset: float = 0.004  # m: the grinder returns this far inside the freed sample area, clear of the kerf's outer wall
     q_left_initial_deg: tuple[float, float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     q_right_initial_deg: tuple[float, float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     grinder_phase: Literal["free", "planar"] = "free"  # the grinder's tool roll is free: 'axis' orientation
@@ -91,6 +94,7 @@ class PlanConfig:
         require_range("lead_out", self.lead_out, 0.0, 0.2)
         require_range("approach_length", self.approach_length, 0.0, 0.2, low_inclusive=True)
         require_range("pregrasp_distance", self.pregrasp_distance, 0.0, 0.3)
+        require_range("return_offset", self.return_offset, 0.0, 0.05, low_inclusive=True)
         for i, v in enumerate(self.carry_offset):
             require_range(f"carry_offset[{i}]", v, -0.5, 0.5, low_inclusive=True)
         for name in ("q_left_initial_deg", "q_right_initial_deg"):
@@ -287,7 +291,7 @@ def grinder_poses(layout: TaskLayout, cfg: PlanConfig) -> dict[str, Array]:
     TCP height range at a given distance is only ~6 cm), so every move near the plate is
     horizontal at the cutting height: approach toward the front edge from outside, cut,
     leave beyond the side edge, wait there while the sample is carried off, and return
-    along the (now empty) kerf to the start.
+    along the (now empty) kerf, shifted into the freed sample area, to the start.
     """
     plate = layout.plate
     kerf = plate.kerf_polyline()
@@ -300,6 +304,9 @@ def grinder_poses(layout: TaskLayout, cfg: PlanConfig) -> dict[str, Array]:
 
     x_in, y_in = kerf[1, 0], kerf[1, 1]
     y_start = plate.corner_y - cfg.lead_in
+    # The way back, once the sample is gone: the kerf's centre line moved toward the freed
+    # sample area, so the cutter (exactly one kerf wide) does not rub the remaining wall.
+    xr, yr = x_in + cfg.return_offset, y_in - cfg.return_offset
     return {
         "pre_cut": pose(x_in, y_start - cfg.approach_length),
         "cut_start": pose(x_in, y_start),
@@ -307,6 +314,11 @@ def grinder_poses(layout: TaskLayout, cfg: PlanConfig) -> dict[str, Array]:
         "inner_corner": pose(x_in, y_in),
         "side_edge": pose(plate.corner_x, y_in),
         "cut_end": pose(plate.corner_x + cfg.lead_out, y_in),
+        "return_out": pose(plate.corner_x + cfg.lead_out, yr),
+        "return_side": pose(plate.corner_x, yr),
+        "return_corner": pose(xr, yr),
+        "return_front": pose(xr, plate.corner_y),
+        "return_start": pose(xr, y_start - cfg.approach_length),
     }
 
 
@@ -393,8 +405,8 @@ def plan_task(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig | None 
     timeline.append((S["retrieval"], [m_carry]))
     steps.update()
     # 5 return: the grinder back along the empty kerf (spindle off), then home.
-    m_ret = grinder.path_move(S["return"], "return", [gp["cut_end"]] + kerf[::-1] + [gp["pre_cut"]], m_exit.q_end,
-                              cfg.fast_speed)
+    back = [gp[k] for k in ("cut_end", "return_out", "return_side", "return_corner", "return_front", "return_start")]
+    m_ret = grinder.path_move(S["return"], "return", back, m_exit.q_end, cfg.fast_speed)
     m_back = _joint_move("left", S["return"], "return", m_ret.q_end, qL0, cfg, grinder.phase)
     m_final = _dwell("left", S["return"], "final", qL0, cfg.dwell_final)
     timeline.append((S["return"], [m_ret, m_back, m_final]))
