@@ -338,6 +338,7 @@ def _record(recorder: _Recorder, model, data, handles: SceneHandles, plan, index
         values[f"{arm}_tcp_mat"] = data.site_xmat[site].reshape(3, 3)
         values[f"{arm}_cable_length"] = data.ten_length[handles.cable_tendons[arm]]
         values[f"{arm}_cable_tension"] = -data.actuator_force[handles.cable_actuators[arm]]
+        values[f"{arm}_cable_common_mode"] = controllers[arm].extra  # tension keeping: shortening per section (m)
         values[f"{arm}_disk_pos"] = data.xpos[handles.disk_bodies[arm]]
     values["sample_pos"] = data.xpos[handles.sample_body]
     values["cells_remaining"] = cutter.cells_remaining
