@@ -77,6 +77,7 @@ class ToolOptions:
     gripper_damping: float = 2.0  # N·s/m per jaw
     gripper_kp: float = 400.0  # N/m, cable position-loop gain
     gripper_max_force: float = 2.0  # N, largest cable tension (foam sample < 1 g)
+    gripper_cable_speed: float = 0.05  # m/s, the gripper motor's speed limit on its cable command
     pad_friction: float = 1.0  # sliding friction of the jaw pads
     # Pad contact (wins over the foam's soft contact): stiff enough that the 2 N grip sinks
     # ~1 mm into the 0.7 g sample. MuJoCo scales contact softness by the bodies' masses;
@@ -102,6 +103,7 @@ class ToolOptions:
         require_range("gripper_damping", self.gripper_damping, 0.0, 1.0e4, low_inclusive=True)
         require_positive("gripper_kp", self.gripper_kp)
         require_positive("gripper_max_force", self.gripper_max_force)
+        require_positive("gripper_cable_speed", self.gripper_cable_speed)
         require_range("pad_friction", self.pad_friction, 0.0, 10.0, low_inclusive=True)
 
     @property

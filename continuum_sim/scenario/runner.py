@@ -233,9 +233,12 @@ def run_scenario(
                 q_plans[arm][index], tcp_plans[arm][index], data.site_xpos[site], data.site_xmat[site], tick_dt,
                 holding[arm], -data.actuator_force[handles.cable_actuators[arm]],
             )
-        data.ctrl[handles.gripper_actuator] = (
-            tool_options.gripper_cable_closed if plan.gripper_closed[index] else tool_options.gripper_cable_open
-        )
+        # The gripper motor runs its cable toward open/closed at its speed limit: a step command
+        # slammed the jaws onto the plate (12 N contact transient on a 2 N grip).
+        target = tool_options.gripper_cable_closed if plan.gripper_closed[index] else tool_options.gripper_cable_open
+        current = float(data.ctrl[handles.gripper_actuator])
+        reach = tool_options.gripper_cable_speed * tick_dt
+        data.ctrl[handles.gripper_actuator] = current + min(max(target - current, -reach), reach)
         data.ctrl[handles.spindle_actuator] = tool_options.spindle_speed if plan.spindle_on[index] else 0.0
 
     apply_controls(0, 0.0)
