@@ -118,6 +118,7 @@ class ArmController:
         self.config = config
         self.base = np.asarray(base, dtype=float)
         self.base_rot_t = self.base[:3, :3].T.copy()
+        self._base_rot_rows = self.base_rot_t.tolist()
         self.tool_length = float(tool_length)
         self.offset = config.pretension / cable_kp
         self.correction = np.zeros(2 * geometry.n_sections)
@@ -204,28 +205,42 @@ class ArmController:
         (by kp per metre) and leaves the bend alone, so the pose loop is not disturbed.
         """
         cfg = self.config
-        for k in range(len(self.extra)):
-            slackest = float(tensions[self._cable_section == k].min())
-            rate = cfg.tension_gain * (cfg.min_tension - slackest) / self.cable_kp
-            self.extra[k] = min(max(self.extra[k] + rate * dt, 0.0), cfg.max_extra_tension / self.cable_kp)
+        slackest = tensions.reshape(len(self.extra), 3).min(axis=1)  # cables come three per section, base to tip
+        self.extra += cfg.tension_gain * (cfg.min_tension - slackest) / self.cable_kp * dt
+        np.clip(self.extra, 0.0, cfg.max_extra_tension / self.cable_kp, out=self.extra)
 
     def _integrate(self, w, tcp_plan: Array, tcp_pos: Array, tcp_mat: Array, dt: float) -> None:
-        """Integrate the weighted tool-pose error through the PCC Jacobian (damped least squares)."""
-        plan = np.asarray(tcp_plan)
-        rot_t = self.base_rot_t
-        error = np.empty(6)
-        error[:3] = rot_t @ (plan[:3, 3] - tcp_pos)
-        error[3:] = rot_t @ _rotation_error_scalar(plan[:3, :3].ravel().tolist(), np.asarray(tcp_mat).ravel().tolist())
-        error *= self.weights
+        """Integrate the weighted tool-pose error through the PCC Jacobian (damped least squares).
+
+        Written for the control tick (250 calls per simulated second): the 3-vectors in
+        plain floats, numpy only for the 6×6 algebra.
+        """
+        plan = np.asarray(tcp_plan).tolist()
+        mat = np.asarray(tcp_mat).ravel().tolist()
+        b = self._base_rot_rows  # rows of Rᵀ (base frame ← world)
+        dx, dy, dz = plan[0][3] - float(tcp_pos[0]), plan[1][3] - float(tcp_pos[1]), plan[2][3] - float(tcp_pos[2])
+        rx, ry, rz = _rotation_error_scalar(plan[0][:3] + plan[1][:3] + plan[2][:3], mat)
+        ow = self.config.orientation_weight
+        rows = [
+            b[0][0] * dx + b[0][1] * dy + b[0][2] * dz,
+            b[1][0] * dx + b[1][1] * dy + b[1][2] * dz,
+            b[2][0] * dx + b[2][1] * dy + b[2][2] * dz,
+            ow * (b[0][0] * rx + b[0][1] * ry + b[0][2] * rz),
+            ow * (b[1][0] * rx + b[1][1] * ry + b[1][2] * rz),
+            ow * (b[2][0] * rx + b[2][1] * ry + b[2][2] * rz),
+        ]
         _, _, J_flat = self._pose.pose_jacobian(w)
         J = np.array(J_flat).reshape(6, -1)
-        J *= self.weights[:, None]
+        J[3:] *= ow
         if self.roll_free:  # keep the angular rows about the tool's own x and y axes only
-            select = np.zeros((5, 6))
-            select[0, 0] = select[1, 1] = select[2, 2] = 1.0
-            select[3:, 3:] = (rot_t @ np.asarray(tcp_mat).reshape(3, 3)[:, :2]).T
-            error = select @ error
-            J = select @ J
+            # Tool x and y axes (columns 0, 1 of the world tool frame) in the base frame.
+            axes = [
+                [b[i][0] * mat[0 + j] + b[i][1] * mat[3 + j] + b[i][2] * mat[6 + j] for i in range(3)] for j in (0, 1)
+            ]
+            e = rows[3:]
+            rows = rows[:3] + [sum(a * v for a, v in zip(axis, e)) for axis in axes]
+            J = np.vstack((J[:3], np.array(axes) @ J[3:]))
+        error = np.array(rows)
         step = J.T @ _solve_spd(J @ J.T + self._regulariser, error)
         self.correction += self.config.outer_gain * dt * step
         self.proportional = self.config.outer_proportional * step
