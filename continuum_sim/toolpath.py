@@ -59,7 +59,7 @@ class PlanConfig:
     dwell_final: float = 0.5  # s
     dwell_before_cut: float = 1.5  # s, the grinder settles at the cut start (in air) before feeding
     lead_in: float = 0.012  # m: the cut starts this far outside the front edge (> kerf_width/2)
-    lead_out: float = 0.012  # m: and ends this far beyond the side edge
+    lead_out: float = 0.020  # m: and ends this far beyond the side edge, where the grinder waits while the sample is carried off
     approach_length: float = 0.020  # m: horizontal approach toward the front edge before the cut start
     pregrasp_distance: float = 0.035  # m: the gripper backs off along its tool axis before the grasp
     # m, world: sample carried away (stage 4), mostly sideways (-y) so it clears the grinder
@@ -422,6 +422,14 @@ def plan_task(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig | None 
             f"{1000 * cfg.min_clearance:.1f} mm) at t = {m['min_arm_clearance_t']:.2f} s during "
             f"{m['min_arm_clearance_stage']}",
         )
+    if plan.metrics["min_sample_clearance_m"] < cfg.min_clearance:
+        m = plan.metrics
+        raise UnreachableError(
+            "plan.carry_offset",
+            f"the carried sample comes within {1000 * m['min_sample_clearance_m']:.1f} mm of the grinder arm (less "
+            f"than min_clearance {1000 * cfg.min_clearance:.1f} mm) at t = {m['min_sample_clearance_t']:.2f} s during "
+            f"{m['min_sample_clearance_stage']}",
+        )
     return plan
 
 
@@ -524,18 +532,44 @@ def arm_envelope(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig, arm
     return np.concatenate(centres, axis=-2), np.concatenate(radii)
 
 
-def arm_clearance(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig, q_left: Array, q_right: Array) -> Array:
-    """Smallest surface distance between the two arms' envelopes per sample (negative: overlap)."""
+def sample_box_gaps(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig, q_left: Array, tcp_right: Array) -> Array:
+    """Per sample, the gap between the grinder arm's envelope spheres and the carried sample.
+
+    The sample is a box that keeps its planned pose relative to the gripper's tool centre
+    (the grasp); a sphere's gap to it is |max(|p_local| − half-size, 0)| − r, exact.
+    """
+    plate = layout.plate
+    grasp = layout.grasp_pose()
+    rel_pos = grasp[:3, :3].T @ (plate.sample_centre - grasp[:3, 3])  # sample centre in the tool-centre frame
+    rel_rot = grasp[:3, :3].T  # the sample's axes (the world's, at the grasp) in the tool-centre frame
+    half = np.array([plate.sample_x, plate.sample_y, plate.thickness]) / 2
+    centre = tcp_right[..., :3, :3] @ rel_pos + tcp_right[..., :3, 3]  # (N, 3)
+    rot = tcp_right[..., :3, :3] @ rel_rot  # (N, 3, 3): sample axes in the world
     pl, rl = arm_envelope(geometry, layout, cfg, "left", q_left)
-    pr, rr = arm_envelope(geometry, layout, cfg, "right", q_right)
-    out = np.empty(len(q_left))
-    radii = rl[:, None] + rr[None, :]
-    for start in range(0, len(q_left), 500):
-        a, b = pl[start:start + 500], pr[start:start + 500]
+    local = np.einsum("nji,nkj->nki", rot, pl - centre[:, None, :])  # sphere centres in the sample frame
+    outside = np.maximum(np.abs(local) - half, 0.0)
+    return np.min(np.linalg.norm(outside, axis=-1) - rl[None, :], axis=1)
+
+
+def _min_sphere_gaps(pa: Array, ra: Array, pb: Array, rb: Array) -> Array:
+    """Per sample, the smallest surface gap between two sphere sets (..., A, 3) and (..., B, 3)."""
+    out = np.empty(len(pa))
+    radii = ra[:, None] + rb[None, :]
+    for start in range(0, len(pa), 500):
+        a, b = pa[start:start + 500], pb[start:start + 500]
         # |a - b|² = |a|² + |b|² - 2 a·b: one batched matmul instead of an (n, na, nb, 3) difference.
         d2 = np.einsum("nid,nid->ni", a, a)[:, :, None] + np.einsum("njd,njd->nj", b, b)[:, None, :] - 2.0 * a @ b.transpose(0, 2, 1)
         out[start:start + 500] = np.min(np.sqrt(np.maximum(d2, 0.0)) - radii, axis=(1, 2))
     return out
+
+
+def arm_clearance(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig, q_left: Array, q_right: Array) -> Array:
+    """Smallest surface distance between the two arms' envelopes per sample (negative: overlap)."""
+    pl, rl = arm_envelope(geometry, layout, cfg, "left", q_left)
+    pr, rr = arm_envelope(geometry, layout, cfg, "right", q_right)
+    return _min_sphere_gaps(pl, rl, pr, rr)
+
+
 
 
 def plate_clearance(geometry: ArmGeometry, layout: TaskLayout, q: Array, arm: str) -> Array:
@@ -554,6 +588,17 @@ def _metrics(geometry, layout, cfg, cat, q_left, q_right, tcp_left, tcp_right, w
     clearance = arm_clearance(geometry, layout, cfg, q_left, q_right)
     i = int(np.argmin(clearance))
     cutting = cat["cutting"]
+    # From the retrieval on, the cut-off sample travels with the gripper: keep it clear of the
+    # grinder (before that it sits in the plate, the kerf, and so the cutter, beside it by design).
+    carried = cat["closed"] & (cat["stage"] >= STAGE_NAMES.index("retrieval"))
+    if carried.any():
+        gaps = sample_box_gaps(geometry, layout, cfg, q_left[carried], tcp_right[carried])
+        j = int(np.argmin(gaps))
+        k = int(np.flatnonzero(carried)[j])
+        sample_gap = {"min_sample_clearance_m": float(gaps[j]), "min_sample_clearance_t": float(cat["t"][k]),
+                      "min_sample_clearance_stage": STAGE_NAMES[int(cat["stage"][k])] + "/" + SEGMENT_NAMES[int(cat["segment"][k])]}
+    else:
+        sample_gap = {"min_sample_clearance_m": math.inf, "min_sample_clearance_t": None, "min_sample_clearance_stage": None}
     # Deviation of the planned TCP (eq. 12 interpolation between solved points) from the ideal kerf line.
     gp = grinder_poses(layout, cfg)
     line = np.array([gp[k][:3, 3] for k in ("cut_start", "front_edge", "inner_corner", "side_edge")])
@@ -572,6 +617,7 @@ def _metrics(geometry, layout, cfg, cat, q_left, q_right, tcp_left, tcp_right, w
         "min_arm_clearance_m": float(clearance[i]),
         "min_arm_clearance_t": float(cat["t"][i]),
         "min_arm_clearance_stage": STAGE_NAMES[int(cat["stage"][i])] + "/" + SEGMENT_NAMES[int(cat["segment"][i])],
+        **sample_gap,
         "min_plate_clearance_left_m": float(plate_clearance(geometry, layout, q_left, "left").min()),
         "min_plate_clearance_right_m": float(plate_clearance(geometry, layout, q_right, "right").min()),
         "cut_path_max_deviation_m": float(dev.max()) if dev.size else 0.0,

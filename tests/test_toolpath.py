@@ -15,9 +15,11 @@ from continuum_sim.toolpath import (
     STAGE_NAMES,
     PlanConfig,
     arm_clearance,
+    arm_envelope,
     grinder_poses,
     plan_task,
     plate_clearance,
+    sample_box_gaps,
     save_plan,
     solve_planar_demo,
     trapezoid_duration,
@@ -166,6 +168,26 @@ def test_unreachable_layout_is_refused_naming_the_point(geometry):
 def test_collision_margin_is_enforced(geometry, layout):
     with pytest.raises(UnreachableError, match="arms come within"):
         plan_task(geometry, layout, PlanConfig(min_clearance=0.2))
+
+
+def test_carried_sample_is_kept_clear_of_the_grinder(plan, geometry, layout, cfg):
+    assert plan.metrics["min_sample_clearance_m"] >= cfg.min_clearance
+    assert plan.metrics["min_sample_clearance_stage"].startswith(("retrieval", "return"))
+    # Carried straight sideways at the plate's height, the sample runs into the waiting grinder.
+    with pytest.raises(UnreachableError, match="plan.carry_offset: the carried sample comes within"):
+        plan_task(geometry, layout, PlanConfig(carry_offset=(0.0, -0.09, 0.0)))
+
+
+def test_sample_box_gap_is_the_exact_sphere_to_box_distance(geometry, layout, cfg):
+    """With the gripper at the grasp, the sample box is where the layout puts it."""
+    q = np.zeros((1, 6))
+    pl, rl = arm_envelope(geometry, layout, cfg, "left", q)
+    plate = layout.plate
+    lo = np.array([plate.corner_x - plate.sample_x, plate.corner_y, plate.top_z - plate.thickness])
+    hi = np.array([plate.corner_x, plate.corner_y + plate.sample_y, plate.top_z])
+    expected = np.min(np.linalg.norm(np.maximum(np.maximum(lo - pl[0], pl[0] - hi), 0.0), axis=-1) - rl)
+    got = sample_box_gaps(geometry, layout, cfg, q, layout.grasp_pose()[None])
+    assert got[0] == pytest.approx(expected, abs=1e-12)
 
 
 def test_plan_config_validation():
