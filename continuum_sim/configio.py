@@ -68,6 +68,19 @@ def require_positive(field: str, value: float) -> None:
     require_range(field, value, 0.0)
 
 
+def require_int(field: str, value: object, low: int, high: int | None = None, hint: str = "") -> None:
+    """Raise unless ``value`` is an int (a bool is not) with ``low <= value (<= high)``.
+
+    ``hint`` is appended to the range, e.g. what the lower bound means.
+    """
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ConfigError(field, f"must be an integer (got {value!r})")
+    if value < low or (high is not None and value > high):
+        name = field.split(".")[-1]
+        bound = f"{low} <= {name}" + ("" if high is None else f" <= {high}")
+        raise ConfigError(field, f"must satisfy {bound}{hint} (got {value})")
+
+
 # ------------------------------------------------------------------ dict <-> dataclass
 def to_dict(config: Any) -> Any:
     """A dataclass tree as nested dicts/lists of plain scalars (TOML-ready)."""

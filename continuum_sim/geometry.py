@@ -19,6 +19,7 @@ from .configio import (
     ConfigError,
     config_from_file,
     from_dict,
+    require_int,
     require_positive,
     require_range,
     save_toml,
@@ -43,10 +44,7 @@ class SectionGeometry:
         require_positive("disk_diameter", self.disk_diameter)
         require_positive("hinge_width", self.hinge_width)
         require_positive("hinge_thickness", self.hinge_thickness)
-        if isinstance(self.n_segments, bool) or not isinstance(self.n_segments, int):
-            raise ConfigError("n_segments", f"must be an integer >= 1 (got {self.n_segments!r})")
-        if not 1 <= self.n_segments <= 200:
-            raise ConfigError("n_segments", f"must satisfy 1 <= n_segments <= 200 (got {self.n_segments})")
+        require_int("n_segments", self.n_segments, 1, 200)
         if len(self.cable_angles_deg) != 3:
             raise ConfigError("cable_angles_deg", f"must have exactly 3 entries (got {len(self.cable_angles_deg)})")
         for i, angle in enumerate(self.cable_angles_deg):

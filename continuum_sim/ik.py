@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import kinematics as kin
-from .configio import ConfigError, require_positive, require_range
+from .configio import require_int, require_positive, require_range
 from .geometry import ArmGeometry
 
 # LAPACK's Cholesky routines: a tenth of np.linalg.solve's call overhead on 6×6.
@@ -61,10 +61,10 @@ class IKOptions:
         require_positive("orientation_weight", self.orientation_weight)
         require_range("position_tolerance", self.position_tolerance, 0.0, 0.1)
         require_range("orientation_tolerance", self.orientation_tolerance, 0.0, 0.5)
-        _require_int("max_iterations", self.max_iterations, 1, 10_000)
-        _require_int("n_starts", self.n_starts, 1, 1000)
-        _require_int("seed_table_size", self.seed_table_size, 1, 100_000)
-        _require_int("seed", self.seed, 0, 2**32 - 1)
+        require_int("max_iterations", self.max_iterations, 1, 10_000)
+        require_int("n_starts", self.n_starts, 1, 1000)
+        require_int("seed_table_size", self.seed_table_size, 1, 100_000)
+        require_int("seed", self.seed, 0, 2**32 - 1)
         require_range("max_step_rad", self.max_step_rad, 0.0, 10.0)
 
 
@@ -86,7 +86,7 @@ class StepLimits:
         require_range("max_dtheta_deg", self.max_dtheta_deg, 0.0, 180.0)
         require_range("max_dphi_deg", self.max_dphi_deg, 0.0, 360.0)
         require_range("phase_free_below_deg", self.phase_free_below_deg, 0.0, 90.0, low_inclusive=True)
-        _require_int("max_subdivisions", self.max_subdivisions, 0, 20)
+        require_int("max_subdivisions", self.max_subdivisions, 0, 20)
 
     @property
     def max_dtheta(self) -> float:
@@ -99,13 +99,6 @@ class StepLimits:
     @property
     def phase_free_below(self) -> float:
         return math.radians(self.phase_free_below_deg)
-
-
-def _require_int(name: str, value: object, low: int, high: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise ConfigError(name, f"must be an integer (got {value!r})")
-    if not low <= value <= high:
-        raise ConfigError(name, f"must satisfy {low} <= {name} <= {high} (got {value})")
 
 
 # ------------------------------------------------------------------------ results

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import kinematics as kin
-from .configio import ConfigError, require_range
+from .configio import ConfigError, require_int, require_range
 from .geometry import ArmGeometry
 from .layout import TaskLayout
 
@@ -37,10 +37,8 @@ class WorkspaceConfig:
     section_half_width: float = 0.01  # m: points with |y - y0| below this form the section view
 
     def __post_init__(self) -> None:
-        if isinstance(self.samples, bool) or not isinstance(self.samples, int) or not 100 <= self.samples <= 20_000_000:
-            raise ConfigError("samples", f"must be an integer with 100 <= samples <= 20000000 (got {self.samples!r})")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ConfigError("seed", f"must be an integer >= 0 (got {self.seed!r})")
+        require_int("samples", self.samples, 100, 20_000_000)
+        require_int("seed", self.seed, 0)
         require_range("voxel", self.voxel, 0.001, 0.2, low_inclusive=True)
         if self.point not in ("tcp", "tip"):
             raise ConfigError("point", f"must be 'tcp' or 'tip' (got {self.point!r})")

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from continuum_sim import ArmGeometry, cable_lengths, disk_frames, forward_kinematics
+from continuum_sim import cable_lengths, disk_frames, forward_kinematics
 from continuum_sim.glbackend import choose_gl_backend
 from continuum_sim.model.arm import build_single_arm_model
 from continuum_sim.model.options import ModelOptions, model_geometry

@@ -124,3 +124,17 @@ def test_cli_missing_config_file_is_named_once(tmp_path, command):
     result = _cli(*command, missing)
     assert result.returncode == 2
     assert result.stderr.count(missing) == 1 and "file not found" in result.stderr
+
+
+def test_require_int_names_the_field_and_the_range():
+    from continuum_sim.configio import require_int
+
+    require_int("a.n", 3, 1, 5)
+    with pytest.raises(ConfigError, match=r"^a\.n: must be an integer \(got True\)$"):
+        require_int("a.n", True, 1, 5)
+    with pytest.raises(ConfigError, match=r"^a\.n: must be an integer \(got 2\.5\)$"):
+        require_int("a.n", 2.5, 1, 5)
+    with pytest.raises(ConfigError, match=r"^a\.n: must satisfy 1 <= n <= 5 \(got 6\)$"):
+        require_int("a.n", 6, 1, 5)
+    with pytest.raises(ConfigError, match=r"^seed: must satisfy 0 <= seed, any int \(got -1\)$"):
+        require_int("seed", -1, 0, hint=", any int")

@@ -9,7 +9,6 @@ import pytest
 from continuum_sim import ConfigError
 from continuum_sim.sweep import GravitySag, Stage, load_spec, parse_spec
 from continuum_sim.sweep import worker as sweep_worker
-from continuum_sim.sweep.runner import preflight
 
 ROOT = Path(__file__).resolve().parents[1]
 

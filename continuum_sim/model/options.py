@@ -6,7 +6,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Literal
 
-from ..configio import ConfigError, require_positive, require_range
+from ..configio import ConfigError, require_int, require_positive, require_range
 from ..geometry import ArmGeometry
 
 
@@ -39,13 +39,7 @@ class ModelOptions:
     def __post_init__(self) -> None:
         if self.joint not in ("ball", "hinge_pair"):
             raise ConfigError("joint", f"must be 'ball' or 'hinge_pair' (got {self.joint!r})")
-        if isinstance(self.segments_per_section, bool) or not isinstance(self.segments_per_section, int):
-            raise ConfigError("segments_per_section", "must be an integer")
-        if not 0 <= self.segments_per_section <= 200:
-            raise ConfigError(
-                "segments_per_section",
-                f"must satisfy 0 <= segments_per_section <= 200, 0 = physical count (got {self.segments_per_section})",
-            )
+        require_int("segments_per_section", self.segments_per_section, 0, 200, hint=", 0 = physical count")
         require_range("stiffness_scale", self.stiffness_scale, 0.0, 1e4)
         require_range("joint_damping", self.joint_damping, 0.0, 100.0, low_inclusive=True)
         require_range("joint_armature", self.joint_armature, 0.0, 1.0, low_inclusive=True)

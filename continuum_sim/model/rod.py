@@ -40,7 +40,7 @@ from typing import Literal, get_args
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..configio import ConfigError, require_range
+from ..configio import ConfigError, require_int, require_range
 from .backbone import LinkSpec, build_backbone
 
 Array = NDArray[np.float64]
@@ -70,8 +70,7 @@ class RodSpec:
         require_range("youngs_modulus", self.youngs_modulus, 0.0, 1e13)
         require_range("poisson_ratio", self.poisson_ratio, -1.0, 0.5, high_inclusive=False)
         require_range("density", self.density, 0.0, 1e5)
-        if isinstance(self.n_links, bool) or not isinstance(self.n_links, int) or not 1 <= self.n_links <= 1000:
-            raise ConfigError("n_links", f"must be an integer with 1 <= n_links <= 1000 (got {self.n_links!r})")
+        require_int("n_links", self.n_links, 1, 1000)
         if self.joint not in get_args(RodJoint):
             raise ConfigError("joint", f"must be one of {', '.join(get_args(RodJoint))} (got {self.joint!r})")
         if self.joint == "ball_twist" and not self.poisson_ratio > 0.0:

@@ -32,7 +32,7 @@ choose_gl_backend()  # before dm_control/mujoco read MUJOCO_GL
 
 from dm_control import mjcf  # noqa: E402
 
-from ..configio import ConfigError, require_range  # noqa: E402
+from ..configio import ConfigError, require_int, require_range  # noqa: E402
 from ..geometry import ArmGeometry  # noqa: E402
 from ..layout import TaskLayout  # noqa: E402
 from . import tools as tools_mod  # noqa: E402
@@ -68,10 +68,8 @@ class SceneOptions:
         require_range("sample_gap", self.sample_gap, 0.0, 0.002, low_inclusive=True)
         require_range("foam_friction", self.foam_friction, 0.0, 10.0, low_inclusive=True)
         require_range("bench_height", self.bench_height, 0.05, 3.0, low_inclusive=True)
-        for name in ("render_width", "render_height"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or not 16 <= value <= 8192:
-                raise ConfigError(name, f"must be an integer with 16 <= {name} <= 8192 (got {value!r})")
+        require_int("render_width", self.render_width, 16, 8192)
+        require_int("render_height", self.render_height, 16, 8192)
 
 
 # ------------------------------------------------------------------ small helpers

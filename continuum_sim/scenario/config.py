@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from importlib import resources
 from typing import Any
 
-from ..configio import ConfigError, config_from_file, from_dict, require_range, save_toml, to_dict
+from ..configio import ConfigError, config_from_file, from_dict, require_int, require_range, save_toml, to_dict
 from ..control import ControlConfig
 from ..geometry import ArmGeometry
 from ..layout import TaskLayout
@@ -53,14 +53,11 @@ class SimulationConfig:
     cameras: tuple[str, ...] = ("overview", "closeup")
 
     def __post_init__(self) -> None:
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ConfigError("seed", f"must be an integer >= 0 (got {self.seed!r})")
+        require_int("seed", self.seed, 0)
         require_range("record_hz", self.record_hz, 1.0, 1000.0, low_inclusive=True)
         require_range("video_fps", self.video_fps, 1.0, 120.0, low_inclusive=True)
-        for name in ("video_width", "video_height"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or not 16 <= value <= 4096:
-                raise ConfigError(name, f"must be an integer in [16, 4096] (got {value!r})")
+        require_int("video_width", self.video_width, 16, 4096)
+        require_int("video_height", self.video_height, 16, 4096)
         if not self.cameras:
             raise ConfigError("cameras", "must name at least one camera")
 

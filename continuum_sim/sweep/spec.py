@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from ..configio import ConfigError, get_path, load_toml, replace_path, to_dict
-from ..scenario.config import ScenarioConfig, merged
+from ..scenario.config import ScenarioConfig
 from .evaluations import Evaluation, parse_evaluation
 
 Number = int | float
