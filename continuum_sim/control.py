@@ -117,14 +117,11 @@ class ArmController:
         self.roll_free = bool(roll_free)
         self.config = config
         self.base = np.asarray(base, dtype=float)
-        self.base_rot_t = self.base[:3, :3].T.copy()
-        self._base_rot_rows = self.base_rot_t.tolist()
+        self._base_rot_rows = self.base[:3, :3].T.tolist()  # rows of Rᵀ: world -> arm base frame
         self.tool_length = float(tool_length)
         self.offset = config.pretension / cable_kp
         self.correction = np.zeros(2 * geometry.n_sections)
         self.proportional = np.zeros(2 * geometry.n_sections)
-        self.weights = np.array([1.0, 1.0, 1.0] + [config.orientation_weight] * 3)
-        self.max_bend = geometry.max_bend
         self._max_bend = np.broadcast_to(geometry.max_bend, (geometry.n_sections,)).astype(float).tolist()
         self.max_correction = np.radians(config.max_correction_deg)
         self._pose = kin.ArmKernel(geometry, self.tool_length)

@@ -414,22 +414,16 @@ def plan_task(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig | None 
     steps.close()
 
     plan = _sample(geometry, layout, cfg, timeline, qL0, qR0, {**grinder.waypoints, **gripper.waypoints})
-    if plan.metrics["min_arm_clearance_m"] < cfg.min_clearance:
-        m = plan.metrics
-        raise UnreachableError(
-            "layout",
-            f"the arms come within {1000 * m['min_arm_clearance_m']:.1f} mm of each other (less than min_clearance "
-            f"{1000 * cfg.min_clearance:.1f} mm) at t = {m['min_arm_clearance_t']:.2f} s during "
-            f"{m['min_arm_clearance_stage']}",
-        )
-    if plan.metrics["min_sample_clearance_m"] < cfg.min_clearance:
-        m = plan.metrics
-        raise UnreachableError(
-            "plan.carry_offset",
-            f"the carried sample comes within {1000 * m['min_sample_clearance_m']:.1f} mm of the grinder arm (less "
-            f"than min_clearance {1000 * cfg.min_clearance:.1f} mm) at t = {m['min_sample_clearance_t']:.2f} s during "
-            f"{m['min_sample_clearance_stage']}",
-        )
+    m = plan.metrics
+    for name, path, what in (("arm", "layout", "the arms come within {} of each other"),
+                              ("sample", "plan.carry_offset", "the carried sample comes within {} of the grinder arm")):
+        if m[f"min_{name}_clearance_m"] < cfg.min_clearance:
+            raise UnreachableError(
+                path,
+                what.format(f"{1000 * m[f'min_{name}_clearance_m']:.1f} mm")
+                + f" (less than min_clearance {1000 * cfg.min_clearance:.1f} mm) at t = {m[f'min_{name}_clearance_t']:.2f} s"
+                f" during {m[f'min_{name}_clearance_stage']}",
+            )
     return plan
 
 
@@ -584,21 +578,26 @@ def plate_clearance(geometry: ArmGeometry, layout: TaskLayout, q: Array, arm: st
     return d.min(axis=-1)
 
 
+def _closest(name: str, gaps: Array, samples: Array, cat: dict) -> dict:
+    """``min_<name>_clearance_m`` / ``_t`` / ``_stage`` of the smallest gap (gaps[i] at plan sample samples[i])."""
+    if gaps.size == 0:
+        return {f"min_{name}_clearance_m": math.inf, f"min_{name}_clearance_t": None, f"min_{name}_clearance_stage": None}
+    j = int(np.argmin(gaps))
+    k = int(samples[j])
+    return {
+        f"min_{name}_clearance_m": float(gaps[j]),
+        f"min_{name}_clearance_t": float(cat["t"][k]),
+        f"min_{name}_clearance_stage": STAGE_NAMES[int(cat["stage"][k])] + "/" + SEGMENT_NAMES[int(cat["segment"][k])],
+    }
+
+
 def _metrics(geometry, layout, cfg, cat, q_left, q_right, tcp_left, tcp_right, waypoints) -> dict:
     clearance = arm_clearance(geometry, layout, cfg, q_left, q_right)
-    i = int(np.argmin(clearance))
     cutting = cat["cutting"]
     # From the retrieval on, the cut-off sample travels with the gripper: keep it clear of the
     # grinder (before that it sits in the plate, the kerf, and so the cutter, beside it by design).
-    carried = cat["closed"] & (cat["stage"] >= STAGE_NAMES.index("retrieval"))
-    if carried.any():
-        gaps = sample_box_gaps(geometry, layout, cfg, q_left[carried], tcp_right[carried])
-        j = int(np.argmin(gaps))
-        k = int(np.flatnonzero(carried)[j])
-        sample_gap = {"min_sample_clearance_m": float(gaps[j]), "min_sample_clearance_t": float(cat["t"][k]),
-                      "min_sample_clearance_stage": STAGE_NAMES[int(cat["stage"][k])] + "/" + SEGMENT_NAMES[int(cat["segment"][k])]}
-    else:
-        sample_gap = {"min_sample_clearance_m": math.inf, "min_sample_clearance_t": None, "min_sample_clearance_stage": None}
+    carried = np.flatnonzero(cat["closed"] & (cat["stage"] >= STAGE_NAMES.index("retrieval")))
+    sample_gaps = sample_box_gaps(geometry, layout, cfg, q_left[carried], tcp_right[carried]) if carried.size else np.zeros(0)
     # Deviation of the planned TCP (eq. 12 interpolation between solved points) from the ideal kerf line.
     gp = grinder_poses(layout, cfg)
     line = np.array([gp[k][:3, 3] for k in ("cut_start", "front_edge", "inner_corner", "side_edge")])
@@ -614,10 +613,8 @@ def _metrics(geometry, layout, cfg, cat, q_left, q_right, tcp_left, tcp_right, w
     return {
         "duration_s": float(cat["t"][-1]),
         "samples": int(cat["t"].size),
-        "min_arm_clearance_m": float(clearance[i]),
-        "min_arm_clearance_t": float(cat["t"][i]),
-        "min_arm_clearance_stage": STAGE_NAMES[int(cat["stage"][i])] + "/" + SEGMENT_NAMES[int(cat["segment"][i])],
-        **sample_gap,
+        **_closest("arm", clearance, np.arange(clearance.size), cat),
+        **_closest("sample", sample_gaps, carried, cat),
         "min_plate_clearance_left_m": float(plate_clearance(geometry, layout, q_left, "left").min()),
         "min_plate_clearance_right_m": float(plate_clearance(geometry, layout, q_right, "right").min()),
         "cut_path_max_deviation_m": float(dev.max()) if dev.size else 0.0,
