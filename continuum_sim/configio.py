@@ -68,6 +68,23 @@ def require_positive(field: str, value: float) -> None:
     require_range(field, value, 0.0)
 
 
+def require_solref(field: str, value: tuple[float, ...]) -> None:
+    """MuJoCo ``solref`` in its standard form: (time constant > 0, damping ratio > 0)."""
+    if len(value) != 2:
+        raise ConfigError(field, f"must have 2 entries (time constant, damping ratio) (got {len(value)})")
+    require_positive(f"{field}[0]", value[0])
+    require_positive(f"{field}[1]", value[1])
+
+
+def require_solimp(field: str, value: tuple[float, ...]) -> None:
+    """MuJoCo ``solimp`` (d0, dwidth, width): impedances 0 < d0 <= dwidth < 1, width > 0."""
+    if len(value) != 3:
+        raise ConfigError(field, f"must have 3 entries (d0, dwidth, width) (got {len(value)})")
+    require_range(f"{field}[0]", value[0], 0.0, 1.0, high_inclusive=False)
+    require_range(f"{field}[1]", value[1], value[0], 1.0, low_inclusive=True, high_inclusive=False)
+    require_positive(f"{field}[2]", value[2])
+
+
 def require_int(field: str, value: object, low: int, high: int | None = None, hint: str = "") -> None:
     """Raise unless ``value`` is an int (a bool is not) with ``low <= value (<= high)``.
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .configio import ConfigError, require_positive, require_range
+from .configio import ConfigError, require_positive, require_range, require_solimp, require_solref
 
 
 @dataclass(frozen=True)
@@ -76,8 +76,8 @@ class PlateLayout:
         require_range("sample_y", self.sample_y, 0.0, self.size[1], high_inclusive=False)
         require_range("kerf_width", self.kerf_width, 0.0, min(self.sample_x, self.sample_y))
         require_range("cut_overtravel", self.cut_overtravel, 0.0, 0.05, low_inclusive=True)
-        require_positive("contact_solref[0]", self.contact_solref[0])
-        require_positive("contact_solref[1]", self.contact_solref[1])
+        require_solref("contact_solref", self.contact_solref)
+        require_solimp("contact_solimp", self.contact_solimp)
         require_positive("density", self.density)
 
     @property

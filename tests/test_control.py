@@ -48,6 +48,10 @@ def test_control_config_rejects_nonsense():
         ControlConfig(mode="fuzzy")  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="rate_hz"):
         ControlConfig(rate_hz=0.0)
+    with pytest.raises(ConfigError, match="min_tension: must satisfy 0 <= min_tension"):
+        ControlConfig(min_tension=-1.0)
+    with pytest.raises(ConfigError, match="tension_gain"):
+        ControlConfig(tension_gain=float("nan"))
 
 
 def _reference_update(controller: ArmController, geometry, q_plan, tcp_plan, tcp_pos, tcp_mat, dt):

@@ -329,6 +329,10 @@ def test_cameras_see_the_cut(scene):
         (lambda: SceneOptions(render_width=3), "render_width"),
         (lambda: ToolOptions(gripper_jaw_travel=0.02), "gripper_jaw_travel"),
         (lambda: ToolOptions(spindle_speed=5000.0), "spindle_speed"),
+        (lambda: ToolOptions(pad_solref=(0.0, 1.0)), "pad_solref[0]"),
+        (lambda: ToolOptions(pad_solimp=(0.99, 0.9, 0.001)), "pad_solimp[1]"),
+        (lambda: ToolOptions(gripper_cable_speed=0.0), "gripper_cable_speed"),
+        (lambda: PlateLayout(contact_solimp=(0.9, 1.2, 0.002)), "contact_solimp[1]"),
         (
             lambda: build_scene(ArmGeometry(), LAYOUT, ModelOptions(), SceneOptions(tools=ToolOptions(cutter_length=0.011))),
             "tools.cutter_length",

@@ -34,7 +34,7 @@ choose_gl_backend()  # before dm_control/mujoco read MUJOCO_GL
 
 from dm_control import mjcf  # noqa: E402
 
-from ..configio import ConfigError, require_positive, require_range  # noqa: E402
+from ..configio import ConfigError, require_positive, require_range, require_solimp, require_solref  # noqa: E402
 from ..geometry import ArmGeometry  # noqa: E402
 from .options import ModelOptions  # noqa: E402
 
@@ -104,6 +104,8 @@ class ToolOptions:
         require_positive("gripper_kp", self.gripper_kp)
         require_positive("gripper_max_force", self.gripper_max_force)
         require_positive("gripper_cable_speed", self.gripper_cable_speed)
+        require_solref("pad_solref", self.pad_solref)
+        require_solimp("pad_solimp", self.pad_solimp)
         require_range("pad_friction", self.pad_friction, 0.0, 10.0, low_inclusive=True)
 
     @property
