@@ -292,11 +292,11 @@ def run_scenario(
             if recorder_video is not None:
                 recorder_video.maybe_capture(data)
             if bar is not None and tick % 100 == 0:
-                bar.n = round(data.time, 2)
+                bar.n = min(round(data.time, 2), bar.total)
                 bar.refresh()
     finally:
         if bar is not None:
-            bar.n = round(data.time, 2)
+            bar.n = min(round(data.time, 2), bar.total)  # the last tick may end past the plan
             bar.close()
         if recorder_video is not None:
             recorder_video.close()
