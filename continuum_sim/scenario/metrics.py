@@ -13,6 +13,10 @@ from numpy.typing import NDArray
 
 Array = NDArray[np.float64]
 
+# Metrics that depend on the machine, not on the configuration: left out of determinism
+# comparisons and of sweep tables.
+WALL_CLOCK_METRICS = ("wall_seconds", "real_time_factor", "wall_breakdown_s")
+
 
 def error_stats(errors_m: Array) -> dict[str, float | None]:
     """mean / RMS / max of an error series, in millimetres (None when empty)."""

@@ -177,6 +177,7 @@ def run_scenario(
     out_dir = None if out_dir is None else Path(out_dir)
     geom = model_geometry(config.arm, config.model)
     plan = plan_task(geom, config.layout, config.plan)  # refuses an unreachable task before anything is written
+    wall_plan = time.perf_counter() - wall_start
     stage_names = tuple(plan.stage_names)
     if stages is not None:
         unknown = [s for s in stages if s not in stage_names]
@@ -249,6 +250,8 @@ def run_scenario(
     moved_early = False
     failure: str | None = None
 
+    wall_setup = time.perf_counter() - wall_start - wall_plan
+    wall_physics = 0.0  # inside mj_step: what the run would cost if everything else were free
     n_ticks = int(np.ceil(end_time / (dt * control_every)))
     # Record on control ticks: every ``record_ticks``-th tick (≥ 1).
     record_ticks = max(1, int(round(record_every / control_every)))
@@ -282,7 +285,9 @@ def run_scenario(
                     moved_early = True
                 _record(recorder, model, data, handles, plan, index, controllers, cutter)
             # The motor loops run inside MuJoCo every step; set-points change per tick.
+            step_start = time.perf_counter()
             mujoco.mj_step(model, data, nstep=control_every)
+            wall_physics += time.perf_counter() - step_start
             cutter.update(bool(plan.spindle_on[index]))
             failure = _check_health(data, baseline)
             if failure is None and not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
@@ -301,10 +306,18 @@ def run_scenario(
         if recorder_video is not None:
             recorder_video.close()
 
+    wall_loop = time.perf_counter() - wall_start - wall_plan - wall_setup
     series = recorder.arrays()
     _derive(series, handles)
     wall = time.perf_counter() - wall_start
     metrics = compute_metrics(series, plan, config, cutter, moved_early, stages, wall)
+    metrics["wall_breakdown_s"] = {  # where the wall time went (machine-dependent, like wall_seconds)
+        "plan": wall_plan,
+        "model_build_and_setup": wall_setup,
+        "physics_mj_step": wall_physics,
+        "control_records_video": wall_loop - wall_physics,
+        "metrics": wall - wall_plan - wall_setup - wall_loop,
+    }
     if failure is not None:
         metrics["diverged"] = failure
     if out_dir is not None:

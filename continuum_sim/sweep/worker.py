@@ -15,6 +15,7 @@ from typing import Any
 
 from ..configio import from_dict
 from ..scenario.config import ScenarioConfig
+from ..scenario.metrics import WALL_CLOCK_METRICS
 from .evaluations import Evaluation, EvaluationFailed, Scenario, Stage, evaluation_from_dict
 
 
@@ -40,9 +41,10 @@ def evaluate_scenario(config: ScenarioConfig, evaluation: Scenario | Stage, run_
 
     stages = (evaluation.stage,) if isinstance(evaluation, Stage) else None
     out_dir = run_dir if evaluation.keep_runs else None
-    metrics = flatten_metrics(run_scenario(config, out_dir, video=False, stages=stages, progress=False))
-    for wall_clock in ("wall_seconds", "real_time_factor"):  # a variant's values must not depend on the machine
+    metrics = run_scenario(config, out_dir, video=False, stages=stages, progress=False)
+    for wall_clock in WALL_CLOCK_METRICS:  # a variant's values must not depend on the machine
         metrics.pop(wall_clock, None)
+    metrics = flatten_metrics(metrics)
     diverged = metrics.pop("diverged", None)
     if diverged:
         raise EvaluationFailed(f"diverged: {diverged}", metrics)
