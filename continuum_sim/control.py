@@ -131,6 +131,7 @@ class ArmController:
         self.extra = np.zeros(geometry.n_sections)  # common-mode shortening per section (m), tension keeping
         self._regulariser = config.damping * np.eye(5 if roll_free else 6)
         self._holding = False
+        self._set_points: tuple[tuple[float, ...], bytes, Array] | None = None  # (w, extra, lengths) of the last tick
         self.last_command: list[float] = []  # bending coordinates of the last set-points (for recording)
 
     def reset(self) -> None:
@@ -192,7 +193,20 @@ class ArmController:
         self.last_command = w
         if self.config.mode == "closed" and tensions is not None and dt > 0.0 and self.config.min_tension > 0.0:
             self._keep_tension(np.asarray(tensions, dtype=float), dt)
-        return self._cables.lengths(w) - self.offset - self.extra[self._cable_section]
+        return self._cable_set_points(w)
+
+    def _cable_set_points(self, w: list[float]) -> Array:
+        """Cable lengths of shape ``w`` less the pre-tension offset and the common mode.
+
+        Reused while neither changes (the gripper arm holding the welded sample through the
+        whole cut): the same numbers without the cable kernel.
+        """
+        key, extra = tuple(w), self.extra.tobytes()
+        if self._set_points is not None and self._set_points[0] == key and self._set_points[1] == extra:
+            return self._set_points[2].copy()
+        lengths = self._cables.lengths(w) - self.offset - self.extra[self._cable_section]
+        self._set_points = (key, extra, lengths)
+        return lengths.copy()
 
     def _keep_tension(self, tensions: Array, dt: float) -> None:
         """Integrate each section's common-mode shortening toward min_tension on its slackest cable.

@@ -111,3 +111,30 @@ def test_cli_run_rejects_bad_config_in_one_line(tmp_path, text, fragment):
     assert result.returncode == 2
     assert fragment in result.stderr and len(result.stderr.strip().splitlines()) == 1
     assert not out.exists()
+
+
+@pytest.mark.parametrize("cone", ["elliptic", "pyramidal"])
+def test_recorded_normal_forces_equal_mujocos_contact_force(cone):
+    """The vectorised per-record normal forces against ``mj_contactForce``, contact by contact."""
+    import mujoco
+
+    from continuum_sim.scenario.runner import _normal_forces
+
+    xml = f"""<mujoco><option cone="{cone}" timestep="0.002"/><worldbody>
+      <geom type="plane" size="1 1 0.1"/>
+      <body pos="0 0 0.05"><freejoint/><geom type="box" size="0.05 0.04 0.03" condim="3"/></body>
+      <body pos="0.3 0 0.05"><freejoint/><geom type="sphere" size="0.04" condim="1"/></body>
+      <body pos="-0.3 0 0.05" euler="0 20 10"><freejoint/><geom type="box" size="0.03 0.03 0.03" condim="6"/></body>
+    </worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    for _ in range(100):
+        mujoco.mj_step(model, data)
+    assert data.ncon >= 6
+    expected = np.zeros(data.ncon)
+    force = np.zeros(6)
+    for i in range(data.ncon):
+        mujoco.mj_contactForce(model, data, i, force)
+        expected[i] = abs(force[0])
+    assert expected.min() > 0.0
+    np.testing.assert_allclose(_normal_forces(model, data, data.ncon), expected, rtol=1e-12, atol=1e-12)

@@ -42,7 +42,8 @@ class KerfCutter:
         self._contype0 = model.geom_contype[self.cells].copy()
         self._conaffinity0 = model.geom_conaffinity[self.cells].copy()
         self._alpha0 = model.geom_rgba[self.cells, 3].copy()
-        self._index = {int(g): k for k, g in enumerate(self.cells)}
+        self._cell_of_geom = np.full(model.ngeom + 1, -1, dtype=int)  # geom id -> cell index (-1: not a cell; last: none)
+        self._cell_of_geom[self.cells] = np.arange(self.cells.size)
         self.reset(reset_data=False)
 
     # ------------------------------------------------------------------ state
@@ -85,10 +86,11 @@ class KerfCutter:
         if n == 0:
             return np.empty(0, dtype=int)
         geom = self.data.contact.geom[:n]
-        other = np.concatenate([geom[geom[:, 0] == self.cutter, 1], geom[geom[:, 1] == self.cutter, 0]])
-        hits = [self._index[int(g)] for g in other if int(g) in self._index]
-        hits = [k for k in hits if np.isnan(self.removal_time[k])]
-        return np.unique(np.asarray(hits, dtype=int))
+        # The other geom of each cutter contact (-1, mapped to "not a cell", otherwise).
+        other = np.where(geom[:, 0] == self.cutter, geom[:, 1], np.where(geom[:, 1] == self.cutter, geom[:, 0], -1))
+        hits = self._cell_of_geom[other]
+        hits = hits[hits >= 0]
+        return np.unique(hits[np.isnan(self.removal_time[hits])])
 
     def update(self, spindle_on: bool | None = None) -> list[int]:
         """Remove cells the running cutter touches; release the weld after the last one.

@@ -109,21 +109,36 @@ def _geom_categories(model: mujoco.MjModel) -> np.ndarray:
 
 def _contact_forces(model: mujoco.MjModel, data: mujoco.MjData, category: np.ndarray) -> np.ndarray:
     """Normal contact force (N) summed per kind: cutter, gripper, arm–arm, arm–world."""
-    out = np.zeros(len(CONTACT_KINDS))
+    n = data.ncon
+    if n == 0:
+        return np.zeros(len(CONTACT_KINDS))
+    contact = data.contact
+    normal = _normal_forces(model, data, n)
+    pair = category[contact.geom[:n]]
+    low, high = pair.min(axis=1), pair.max(axis=1)
+    cutter = (low == 1) | (high == 1)
+    gripper = ~cutter & ((low == 2) | (high == 2))
+    arm_arm = (low == 3) & (high == 4)
+    arm_world = (low == 0) & ((high == 3) | (high == 4))
+    return np.array([normal[mask].sum() for mask in (cutter, gripper, arm_arm, arm_world)])
+
+
+def _normal_forces(model: mujoco.MjModel, data: mujoco.MjData, n: int) -> np.ndarray:
+    """|normal force| of the first ``n`` contacts (what ``mj_contactForce`` gives in its first entry).
+
+    With elliptic cones (and condim 1) the normal force is the contact's first constraint
+    row; pyramidal cones spread it over the pyramid's edges, so ask MuJoCo for those.
+    """
+    address = data.contact.efc_address[:n]
+    if data.nefc == 0:
+        return np.zeros(n)
+    if model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC:
+        return np.where(address >= 0, np.abs(data.efc_force[np.maximum(address, 0)]), 0.0)
     force = np.zeros(6)
-    for i in range(data.ncon):
-        contact = data.contact[i]
-        a, b = sorted((category[contact.geom1], category[contact.geom2]))
+    out = np.zeros(n)
+    for i in range(n):
         mujoco.mj_contactForce(model, data, i, force)
-        f = abs(force[0])
-        if b == 1 or a == 1:
-            out[0] += f
-        elif b == 2 or a == 2:
-            out[1] += f
-        elif (a, b) == (3, 4):
-            out[2] += f
-        elif a == 0 and b in (3, 4):
-            out[3] += f
+        out[i] = abs(force[0])
     return out
 
 
