@@ -337,6 +337,21 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
         raise
 
 
+def atomic_write_figure(fig: Any, path: str | os.PathLike[str], dpi: int = 120) -> Path:
+    """Lay out, write atomically (format from the suffix, PNG without one) and close a figure."""
+    import io
+
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    fig.tight_layout()
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format=path.suffix.lstrip(".") or "png", dpi=dpi)
+    plt.close(fig)
+    atomic_write_bytes(path, buffer.getvalue())
+    return path
+
+
 def save_toml(config: Any, path: str | os.PathLike[str]) -> None:
     atomic_write_text(path, dumps_toml(to_dict(config)))
 

@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import kinematics as kin
+from .configio import atomic_write_figure
 from .geometry import ArmGeometry
 from .layout import TaskLayout
 
@@ -47,10 +48,7 @@ def plot_shape_parameters(q: Array, position_error: Array, orientation_error: Ar
     bx.set_title(f"(b) error per point (max {1e6 * np.max(position_error):.2e} µm)")
     bx.grid(alpha=0.3, which="both")
     bx.legend(fontsize=8)
-    fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    atomic_write_figure(fig, path)
 
 
 def _box_edges(lo: Array, hi: Array) -> list[Array]:
@@ -97,10 +95,7 @@ def plot_plan_overview(plan, geometry: ArmGeometry, layout: TaskLayout, path: st
     ax.set_zlabel("z [mm]")
     ax.set_title("Task plan: TCP paths by stage (left solid, right dashed), backbones at instants")
     ax.legend(fontsize=8, loc="upper left")
-    fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    atomic_write_figure(fig, path)
 
 
 def plot_plan_timeseries(plan, clearance: Array, path: str | Path) -> None:
@@ -128,7 +123,4 @@ def plot_plan_timeseries(plan, clearance: Array, path: str | Path) -> None:
         m = plan.stage == s
         if m.any():
             axes[0].text(plan.t[m].mean(), axes[0].get_ylim()[1], name, ha="center", va="bottom", fontsize=8)
-    fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    atomic_write_figure(fig, path)

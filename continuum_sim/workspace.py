@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import kinematics as kin
-from .configio import ConfigError, require_int, require_range
+from .configio import ConfigError, atomic_write_figure, require_int, require_range
 from .geometry import ArmGeometry
 from .layout import TaskLayout
 
@@ -206,10 +206,7 @@ def plot_workspace(ws: CooperativeWorkspace, path: str | Path, layout: TaskLayou
     ax.set_ylabel("z [mm]")
     ax.set_title(f"(b) section view |y - {1000 * section_y:.0f} mm| < {1000 * half:.0f} mm")
     ax.legend(loc="lower center", fontsize=8, markerscale=4, ncol=2)
-    fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    atomic_write_figure(fig, path)
 
 
 class UnreachableError(ConfigError):

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..configio import atomic_write_figure
 from .config import ScenarioConfig
 
 STAGE_COLOURS = ("#dddddd", "#cfe3f7", "#f7dccf", "#d8f0d0", "#efe2f7", "#f5f0c8", "#e0e0e0")
@@ -30,13 +31,6 @@ def _shade_stages(ax, t: np.ndarray, stage: np.ndarray, names: tuple[str, ...]) 
         label = names[index] if index not in seen else None
         seen.add(index)
         ax.axvspan(t[a], t[b], color=STAGE_COLOURS[index % len(STAGE_COLOURS)], alpha=0.6, lw=0, label=label)
-
-
-def _save(fig, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.partial.png")
-    fig.savefig(tmp, dpi=120)
-    tmp.replace(path)
 
 
 def toolpath_plot(path: Path, series, plan, config: ScenarioConfig) -> None:
@@ -74,9 +68,7 @@ def toolpath_plot(path: Path, series, plan, config: ScenarioConfig) -> None:
     ax.set_title("Grinder error during milling")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    _save(fig, path)
-    plt.close(fig)
+    atomic_write_figure(fig, path)
 
 
 def section_angles_plot(path: Path, series, plan) -> None:
@@ -103,9 +95,7 @@ def section_angles_plot(path: Path, series, plan) -> None:
             if row == 1:
                 ax.set_xlabel("time [s]")
     axes[0, 0].legend(fontsize=7, ncol=2, loc="upper left")
-    fig.tight_layout()
-    _save(fig, path)
-    plt.close(fig)
+    atomic_write_figure(fig, path)
 
 
 def tip_error_plot(path: Path, series, plan) -> None:
@@ -122,9 +112,7 @@ def tip_error_plot(path: Path, series, plan) -> None:
     ax.set_ylabel("error [mm]")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8, ncol=4)
-    fig.tight_layout()
-    _save(fig, path)
-    plt.close(fig)
+    atomic_write_figure(fig, path)
 
 
 def tension_plot(path: Path, series, plan) -> None:
@@ -142,9 +130,7 @@ def tension_plot(path: Path, series, plan) -> None:
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("tension [N]")
     axes[0].legend(fontsize=7, ncol=3)
-    fig.tight_layout()
-    _save(fig, path)
-    plt.close(fig)
+    atomic_write_figure(fig, path)
 
 
 def write_run_plots(plot_dir: Path, series, plan, config: ScenarioConfig) -> None:

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ..configio import atomic_write_bytes, atomic_write_text
+from ..configio import atomic_write_bytes, atomic_write_figure, atomic_write_text
 from .spec import GridAxis, SweepSpec
 
 
@@ -161,9 +161,7 @@ def write_plots(spec: SweepSpec, records: dict[str, dict[str, Any]], root: Path)
             ax.grid(True, which="both", alpha=0.3)
             if others or np.any(failed):
                 ax.legend(fontsize=7)
-            fig.tight_layout()
-            written.append(_save(fig, out_dir / f"{_safe(metric)}__vs__{_safe(axis.path)}.png"))
-            plt.close(fig)
+            written.append(atomic_write_figure(fig, out_dir / f"{_safe(metric)}__vs__{_safe(axis.path)}.png", dpi=110))
         if len(spec.axes) == 2:
             written.append(_heatmap(plt, spec, grid, metric, out_dir))
     if len(spec.axes) == 1:
@@ -195,9 +193,7 @@ def _overview(plt, spec: SweepSpec, records, out_dir: Path) -> Path | None:
     for ax in axes[-1]:
         ax.set_xlabel(axis.path)
     fig.suptitle(f"{spec.evaluation.kind} vs {axis.path}", fontsize=11)
-    fig.tight_layout()
-    path = _save(fig, out_dir / f"overview__vs__{_safe(axis.path)}.png")
-    plt.close(fig)
+    path = atomic_write_figure(fig, out_dir / f"overview__vs__{_safe(axis.path)}.png", dpi=110)
     return path
 
 
@@ -217,14 +213,7 @@ def _heatmap(plt, spec: SweepSpec, grid: np.ndarray, metric: str, out_dir: Path)
                 ax.text(j, i, text, ha="center", va="center", fontsize=6, color="w")
     fig.colorbar(image, ax=ax, label=metric)
     ax.set_title(f"{spec.evaluation.kind}: {metric}", fontsize=10)
-    fig.tight_layout()
-    path = _save(fig, out_dir / f"{_safe(metric)}__heatmap.png")
-    plt.close(fig)
+    path = atomic_write_figure(fig, out_dir / f"{_safe(metric)}__heatmap.png", dpi=110)
     return path
 
 
-def _save(fig, path: Path) -> Path:
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=110)
-    atomic_write_bytes(path, buffer.getvalue())
-    return path
