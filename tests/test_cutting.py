@@ -69,13 +69,18 @@ def drive(model, data, cutter, spindle: bool, stop: float | None = None, settle:
     return log
 
 
-@pytest.fixture(scope="module")
-def full_cut():
-    geometry, model = mocap_scene()
+def fresh_scene():
+    """(model, data, cutter, sample rest position) of a new, uncut mocap scene."""
+    _, model = mocap_scene()
     data = mujoco.MjData(model)
     cutter = KerfCutter(model, data)
     mujoco.mj_forward(model, data)
-    rest = data.body("sample").xpos.copy()
+    return model, data, cutter, data.body("sample").xpos.copy()
+
+
+@pytest.fixture(scope="module")
+def full_cut():
+    model, data, cutter, rest = fresh_scene()
     log = drive(model, data, cutter, spindle=True)
     fall_from = data.time
     while data.time < fall_from + 0.2:
@@ -119,9 +124,7 @@ def test_removed_cells_stop_colliding_and_vanish(full_cut):
 
 
 def test_reset_restores_cells_and_weld(full_cut):
-    geometry, model = mocap_scene()  # a fresh model: the fixture's one stays cut for the other tests
-    data = mujoco.MjData(model)
-    cutter = KerfCutter(model, data)
+    model, data, cutter, _ = fresh_scene()  # a fresh model: the fixture's one stays cut for the other tests
     contype = model.geom_contype[cutter.cells].copy()
     drive(model, data, cutter, spindle=True)
     assert cutter.detached
@@ -132,11 +135,7 @@ def test_reset_restores_cells_and_weld(full_cut):
 
 
 def test_partial_cut_keeps_the_sample_attached():
-    geometry, model = mocap_scene()
-    data = mujoco.MjData(model)
-    cutter = KerfCutter(model, data)
-    mujoco.mj_forward(model, data)
-    rest = data.body("sample").xpos.copy()
+    model, data, cutter, rest = fresh_scene()
     points, cum = cut_path()
     drive(model, data, cutter, spindle=True, stop=cum[-2] - 0.02, settle=0.3)  # stop short of the side edge
     assert 1 <= cutter.cells_remaining < cutter.n_cells // 2
@@ -145,11 +144,7 @@ def test_partial_cut_keeps_the_sample_attached():
 
 
 def test_spindle_off_removes_nothing():
-    geometry, model = mocap_scene()
-    data = mujoco.MjData(model)
-    cutter = KerfCutter(model, data)
-    mujoco.mj_forward(model, data)
-    rest = data.body("sample").xpos.copy()
+    model, data, cutter, rest = fresh_scene()
     log = drive(model, data, cutter, spindle=False, settle=0.2)
     assert log == [] and cutter.cells_remaining == cutter.n_cells and not cutter.detached
     assert np.linalg.norm(data.body("sample").xpos - rest) < 2e-4
