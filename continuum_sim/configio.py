@@ -24,6 +24,8 @@ class ConfigError(ValueError):
     """A configuration value is invalid; ``field`` is its dotted path."""
 
     def __init__(self, field: str, message: str) -> None:
+        if len(field) > 200:  # a hostile key name: keep the message one readable line
+            field = field[:120] + f"…({len(field)} characters)"
         self.field = field
         self.message = message
         super().__init__(f"{field}: {message}")
@@ -37,9 +39,20 @@ class ConfigError(ValueError):
 
 
 # --------------------------------------------------------------------------- checks
+MAX_ECHO = 80  # characters of a value echoed in an error message (a 100 kB value must not flood the terminal)
+
+
+def shorten(value: object, limit: int = MAX_ECHO) -> str:
+    """``repr(value)`` cut to ``limit`` characters, saying how long it was."""
+    text = repr(value)
+    if len(text) <= limit:
+        return text
+    return f"{text[: limit - 1]}… ({len(text)} characters)"
+
+
 def require_finite(field: str, value: float) -> None:
     if not math.isfinite(value):
-        raise ConfigError(field, f"must be a finite number (got {value!r})")
+        raise ConfigError(field, f"must be a finite number (got {shorten(value)})")
 
 
 def require_range(
@@ -61,7 +74,7 @@ def require_range(
     if not ok:
         lo = "" if low is None else f"{low:g} {'<=' if low_inclusive else '<'} "
         hi = "" if high is None else f" {'<=' if high_inclusive else '<'} {high:g}"
-        raise ConfigError(field, f"must satisfy {lo}{field.split('.')[-1]}{hi} (got {value!r})")
+        raise ConfigError(field, f"must satisfy {lo}{field.split('.')[-1]}{hi} (got {shorten(value)})")
 
 
 def require_positive(field: str, value: float) -> None:
@@ -91,7 +104,7 @@ def require_int(field: str, value: object, low: int, high: int | None = None, hi
     ``hint`` is appended to the range, e.g. what the lower bound means.
     """
     if isinstance(value, bool) or not isinstance(value, int):
-        raise ConfigError(field, f"must be an integer (got {value!r})")
+        raise ConfigError(field, f"must be an integer (got {shorten(value)})")
     if value < low or (high is not None and value > high):
         name = field.split(".")[-1]
         bound = f"{low} <= {name}" + ("" if high is None else f" <= {high}")
@@ -136,7 +149,7 @@ def _convert(tp: Any, value: Any, field: str) -> Any:
         raise errors[0]
     if origin is Literal:
         if value not in get_args(tp):
-            raise ConfigError(field, f"must be {_type_name(tp)} (got {value!r})")
+            raise ConfigError(field, f"must be {_type_name(tp)} (got {shorten(value)})")
         return value
     if dataclasses.is_dataclass(tp):
         if isinstance(value, tp):
@@ -155,7 +168,7 @@ def _convert(tp: Any, value: Any, field: str) -> Any:
         return tuple(_convert(a, v, f"{field}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(field, f"must be a number (got {type(value).__name__} {value!r})")
+            raise ConfigError(field, f"must be a number (got {type(value).__name__} {shorten(value)})")
         value = float(value)
         require_finite(field, value)
         return value
@@ -163,11 +176,11 @@ def _convert(tp: Any, value: Any, field: str) -> Any:
         if isinstance(value, bool) or not isinstance(value, int):
             if isinstance(value, float) and value.is_integer():
                 return int(value)
-            raise ConfigError(field, f"must be an integer (got {type(value).__name__} {value!r})")
+            raise ConfigError(field, f"must be an integer (got {type(value).__name__} {shorten(value)})")
         return value
     if tp is bool:
         if not isinstance(value, bool):
-            raise ConfigError(field, f"must be true or false (got {value!r})")
+            raise ConfigError(field, f"must be true or false (got {shorten(value)})")
         return value
     if tp is str:
         if not isinstance(value, str):
@@ -291,16 +304,77 @@ def dumps_toml(data: dict[str, Any], _prefix: str = "") -> str:
     return "\n".join(lines).strip("\n") + ("\n" if not _prefix else "")
 
 
-def load_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Read a TOML file; a syntax error becomes a ``ConfigError`` naming the file."""
+MAX_CONFIG_BYTES = 16 * 1024 * 1024  # a configuration or spec file larger than this is not a configuration
+MAX_CONFIG_DEPTH = 32  # tables/arrays nested deeper than this: no config of this package needs more than 5
+
+
+def _depth(value: Any, limit: int) -> int:
+    """Nesting depth of dicts/lists, iteratively (a hostile file must not exhaust the stack)."""
+    deepest = 0
+    stack: list[tuple[Any, int]] = [(value, 0)]
+    while stack:
+        node, level = stack.pop()
+        if isinstance(node, dict):
+            children = list(node.values())
+        elif isinstance(node, list):
+            children = node
+        else:
+            continue
+        deepest = max(deepest, level + 1)
+        if deepest > limit:
+            return deepest
+        stack.extend((child, level + 1) for child in children)
+    return deepest
+
+
+def read_config_text(path: str | os.PathLike[str]) -> str:
+    """The text of a configuration file; anything that is not a readable UTF-8 file is a ``ConfigError``."""
     path = Path(path)
+    where = str(path)
     try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
+        if path.is_dir():
+            raise ConfigError(where, "is a folder, not a TOML file")
+        if path.exists() and not path.is_file():
+            raise ConfigError(where, "is not a regular file (a device or pipe?); give a TOML file")
+        size = path.stat().st_size
+        if size > MAX_CONFIG_BYTES:
+            raise ConfigError(where, f"is {size} bytes; a configuration file may be at most {MAX_CONFIG_BYTES} bytes")
+        raw = path.read_bytes()
     except FileNotFoundError:
-        raise ConfigError(str(path), "file not found") from None
+        raise ConfigError(where, "file not found") from None
+    except PermissionError:
+        raise ConfigError(where, "cannot read the file (permission denied)") from None
+    except OSError as exc:
+        raise ConfigError(where, f"cannot read the file ({exc.strerror or exc})") from None
+    except ValueError as exc:  # e.g. an embedded NUL byte in the path
+        if isinstance(exc, ConfigError):
+            raise
+        raise ConfigError("path", f"not a usable file name ({exc}): {shorten(where)}") from None
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise ConfigError(where, "is UTF-16 text; TOML files must be UTF-8 (re-save it as UTF-8)")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(where, f"is not UTF-8 text (byte {exc.start}); TOML files are UTF-8 (binary file?)") from None
+    return text.removeprefix("\ufeff")
+
+
+def parse_toml_text(text: str, where: str) -> dict[str, Any]:
+    """Parse TOML text; syntax errors and absurd nesting become a ``ConfigError`` naming ``where``."""
+    try:
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(str(path), f"invalid TOML: {exc}") from None
+        raise ConfigError(where, f"invalid TOML: {exc}") from None
+    except RecursionError:
+        raise ConfigError(where, f"nested too deeply (at most {MAX_CONFIG_DEPTH} levels of tables and arrays)") from None
+    if _depth(data, MAX_CONFIG_DEPTH) > MAX_CONFIG_DEPTH:
+        raise ConfigError(where, f"nested too deeply (at most {MAX_CONFIG_DEPTH} levels of tables and arrays)")
+    return data
+
+
+def load_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Read a TOML file; a missing/unreadable/binary/non-UTF-8 file or bad syntax is a ``ConfigError`` naming it."""
+    return parse_toml_text(read_config_text(path), str(path))
 
 
 def config_from_file(path: str | os.PathLike[str], build: "Callable[[dict[str, Any]], T]") -> T:
@@ -355,3 +429,52 @@ def atomic_write_figure(fig: Any, path: str | os.PathLike[str], dpi: int = 120) 
 def save_toml(config: Any, path: str | os.PathLike[str]) -> None:
     atomic_write_text(path, dumps_toml(to_dict(config)))
 
+
+
+# ------------------------------------------------------------------- output folders
+SYSTEM_TREES = ("/proc", "/sys", "/dev")  # kernel/device trees: never a place for results
+NAME_MAX = 255  # bytes per path component on Linux file systems
+PATH_MAX = 4096
+
+
+def check_output_dir(path: str | os.PathLike[str], option: str = "--out", create: bool = True) -> Path:
+    """Check (and with ``create`` make) an output folder; every problem is one ``ConfigError`` naming ``option``.
+
+    Refused before any work: an empty name, a NUL byte, a component longer than 255
+    bytes, a path under /proc, /sys or /dev, an existing file, a parent that is a file
+    or cannot be written.
+    """
+    text = os.fspath(path)
+    if not isinstance(text, str) or not text.strip():
+        raise ConfigError(option, "must name a folder (got an empty string); e.g. runs/my_run")
+    if "\0" in text:
+        raise ConfigError(option, f"contains a NUL byte: {shorten(text)}")
+    encoded = os.fsencode(text)
+    if len(encoded) >= PATH_MAX:
+        raise ConfigError(option, f"path is {len(encoded)} bytes; at most {PATH_MAX - 1} allowed: {shorten(text)}")
+    for part in Path(text).parts:
+        if len(os.fsencode(part)) > NAME_MAX:
+            raise ConfigError(option, f"a folder name is {len(os.fsencode(part))} bytes; at most {NAME_MAX} allowed: {shorten(part)}")
+    out = Path(text)
+    absolute = Path(os.path.abspath(text))
+    for tree in SYSTEM_TREES:
+        if absolute == Path(tree) or Path(tree) in absolute.parents:
+            raise ConfigError(option, f"{shorten(str(absolute))} is under {tree}, a system tree; write results elsewhere")
+    if out.exists() and not out.is_dir():
+        raise ConfigError(option, f"{shorten(text)} exists and is not a folder; give a folder path")
+    ancestor = absolute
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise ConfigError(option, f"{shorten(str(ancestor))} is a file, so {shorten(text)} cannot be a folder")
+    target = absolute if absolute.exists() else ancestor
+    if not os.access(target, os.W_OK | os.X_OK):
+        raise ConfigError(option, f"{shorten(str(target))} is not writable (permission denied)")
+    if create:
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            probe = tempfile.NamedTemporaryFile(dir=out, prefix=".write-test.", delete=True)  # noqa: SIM115
+            probe.close()
+        except OSError as exc:
+            raise ConfigError(option, f"cannot write into {shorten(text)} ({exc.strerror or exc})") from None
+    return out

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from ..configio import ConfigError, get_path, load_toml, replace_path, to_dict
+from ..configio import ConfigError, get_path, parse_toml_text, read_config_text, replace_path, to_dict
 from ..scenario.config import ScenarioConfig
 from .evaluations import Evaluation, parse_evaluation
 
@@ -269,8 +269,9 @@ def parse_spec(data: dict[str, Any], spec_dir: str | os.PathLike[str] | None = N
 def load_spec(path: str | os.PathLike[str]) -> SweepSpec:
     """Read and validate a sweep spec TOML; errors name the file and the field."""
     path = Path(path)
-    data = load_toml(path)
+    text = read_config_text(path)
+    data = parse_toml_text(text, str(path))
     try:
-        return parse_spec(data, path.parent, path.read_text())
+        return parse_spec(data, path.parent, text)
     except ConfigError as exc:
         raise exc.under(f"{path}: ") from None
