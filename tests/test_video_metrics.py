@@ -45,6 +45,47 @@ def test_video_recorder_writes_tiled_mp4_atomically(tmp_path):
     assert not list(tmp_path.glob(".*partial*"))
 
 
+def _record_clip(path, workers: int, chunk_frames: int = 60) -> int:
+    """Record 0.5 s of the falling box; the box turns invisible at t = 0.25 s (a run changing colours)."""
+    from continuum_sim.video import VideoRecorder
+
+    model = mujoco.MjModel.from_xml_string(SCENE)
+    data = mujoco.MjData(model)
+    box = int(model.body_geomadr[1])  # the falling box's geom
+    with VideoRecorder(model, path, ["a", "b"], width=160, height=120, fps=20, workers=workers, chunk_frames=chunk_frames) as video:
+        while data.time < 0.5:
+            mujoco.mj_step(model, data)
+            if data.time >= 0.25:
+                model.geom_rgba[box, 3] = 0.0
+            video.maybe_capture(data)
+            assert not path.exists()
+    return video.frames
+
+
+def _read_frames(path):
+    import imageio.v2 as imageio
+
+    reader = imageio.get_reader(path)
+    frames = np.array([f for f in reader], dtype=float)
+    reader.close()
+    return frames
+
+
+def test_parallel_video_workers_match_in_process_rendering(tmp_path):
+    """Render workers (chunks of 4 frames -> 3 segments joined without re-encoding) give the
+    frames the in-process renderer gives, colour changes included, and leave no temporaries."""
+    serial, parallel = tmp_path / "serial.mp4", tmp_path / "parallel.mp4"
+    assert _record_clip(serial, workers=0) == 11
+    assert _record_clip(parallel, workers=2, chunk_frames=4) == 11
+    a, b = _read_frames(serial), _read_frames(parallel)
+    assert a.shape == b.shape == (11, 120, 320, 3)
+    assert np.abs(a - b).mean() < 2.0  # same pictures up to the encoder's rounding
+    red = lambda f: ((f[..., 0] > f[..., 1] + 60) & (f[..., 0] > f[..., 2] + 60)).sum()  # noqa: E731
+    assert red(a[4]) > 50 and red(b[4]) > 50  # the box is drawn …
+    assert red(a[-1]) == 0 and red(b[-1]) == 0  # … then hidden after t = 0.25 s
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["parallel.mp4", "serial.mp4"]
+
+
 def test_video_recorder_rejects_unknown_camera(tmp_path):
     from continuum_sim.video import VideoRecorder
 
