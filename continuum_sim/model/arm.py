@@ -4,8 +4,11 @@ A pure function of (geometry, options): it holds no simulation state. Every disk
 a site at each cable hole it has (proximal disks carry the holes of all cables passing
 through), and each cable is a spatial tendon through its holes from the base plate to
 the last disk of its section, so the tendon length is exactly SPEC §2's cable length
-(the polyline of the closed-loop vectors l). Each cable is pulled by one position
-actuator (the motor loop) that can only pull: force range [−Fmax, 0].
+(the polyline of the closed-loop vectors l). Each cable is pulled by one tension-only
+position actuator, force range [−Fmax, 0]: with ``cable_model = "elastic"`` its gain is
+the cable's own axial stiffness EA/L (L = lead + in-arm path; ``motors.cable_stiffness``)
+and its control the motor position (``motors.MotorBank``); with ``"lumped"`` it is the
+legacy P-only servo of gain ``cable_kp`` standing for motor and cable together.
 """
 
 from __future__ import annotations
@@ -18,8 +21,9 @@ from ..configio import ConfigError
 from ..geometry import ArmGeometry
 from ..kinematics import straight_cable_lengths
 from .backbone import LinkSpec, build_backbone
+from .motors import cable_stiffness
 from .options import ModelOptions, model_geometry
-from .stiffness import joint_stiffness
+from .stiffness import joint_stiffnesses
 
 # Collision bits: an arm never collides with itself, but with the other arm and the world.
 ARM_COLLISION_BITS = {"left": 2, "right": 4}
@@ -56,15 +60,20 @@ def section_links(geometry: ArmGeometry, options: ModelOptions) -> list[list[Lin
         radius = sec.disk_diameter / 2.0
         disk_volume = math.pi * radius**2 * geometry.disk_thickness
         section_mass = phys.n_segments * geometry.material.density * disk_volume
-        k_joint = joint_stiffness(geometry, k, sec.n_segments, options.stiffness_scale)
+        if geometry.backbone == "rod":
+            section_mass += geometry.rod.density * math.pi * geometry.rod.radius**2 * phys.length
+        kx, ky, kz = joint_stiffnesses(geometry, k, sec.n_segments, options.stiffness_scale)
+        if options.joint == "hinge_triple" and not math.isfinite(kz):
+            raise ConfigError("model.joint", "hinge_triple needs a twist spring; arm.central_joint = 'universal' blocks twist (use hinge_pair)")
         damping = options.joint_damping * sec.n_segments / phys.n_segments
         link = LinkSpec(
             pitch=sec.pitch,
             radius=radius,
             half_length=geometry.disk_thickness / 2.0,
             mass=section_mass / sec.n_segments,
-            bending_stiffness=k_joint,
-            twist_stiffness=k_joint,
+            bending_stiffness=kx,
+            bending_stiffness_y=ky,
+            twist_stiffness=kz if math.isfinite(kz) else 0.0,
             damping=damping,
             armature=options.joint_armature,
         )
@@ -110,7 +119,7 @@ def build_arm(geometry: ArmGeometry, options: ModelOptions, name: str, tool: str
     _add_hole_sites(base, 0, holes, range(model_geom.n_cables))
 
     links = section_links(geometry, options)
-    joint_kind = "ball" if options.joint == "ball" else "hinge_pair"
+    joint_kind = options.joint
     parent = base
     disk_index = 1
     disk_section: list[int] = []
@@ -129,6 +138,7 @@ def build_arm(geometry: ArmGeometry, options: ModelOptions, name: str, tool: str
 
     if options.tendons:
         straight = straight_cable_lengths(model_geom)
+        stiffness = cable_stiffness(geometry, options)
         last_disk = np.cumsum([s.n_segments for s in model_geom.sections])
         for c in range(model_geom.n_cables):
             k, j = divmod(c, 3)
@@ -136,13 +146,13 @@ def build_arm(geometry: ArmGeometry, options: ModelOptions, name: str, tool: str
             tendon = root.tendon.add(
                 "spatial", name=cable, width=0.0008, rgba=(0.95, 0.55, 0.1, 1.0), damping=options.cable_damping
             )
-            for disk in range(0, int(last_disk[k]) + 1):
+            for disk in range(int(last_disk[k]) + 1):
                 tendon.add("site", site=f"hole_{disk}_{c}")
             root.actuator.add(
                 "position",
                 name=cable,
                 tendon=cable,
-                kp=options.cable_kp,
+                kp=float(stiffness[c]),
                 kv=options.cable_kv,
                 forcelimited=True,
                 forcerange=(-options.cable_max_force, 0.0),

@@ -19,13 +19,28 @@ class ModelOptions:
     k = n·EI/L, so the section's response does not change.
     """
 
-    joint: Literal["ball", "hinge_pair"] = "ball"
+    # ball: MuJoCo ball joint, isotropic spring (mean bending stiffness, also in twist);
+    # hinge_pair: x/y hinges with per-axis springs, rigid in twist (a universal joint);
+    # hinge_triple: x/y/z hinges, the z spring is the segment's twist stiffness.
+    joint: Literal["ball", "hinge_pair", "hinge_triple"] = "ball"
     segments_per_section: int = 0
     stiffness_scale: float = 1.0  # multiplies every flexure stiffness (the design sweep knob)
     joint_damping: float = 0.2  # N·m·s/rad per physical joint (hinge + ball friction, *assumed*); scaled like stiffness
     joint_armature: float = 1e-5  # kg·m², numerical regulariser for light disks
-    cable_max_force: float = 150.0  # N, Fmax of each tension-only cable actuator
-    cable_kp: float = 3.0e4  # N/m, motor position-loop gain expressed at the cable
+    # --- Transmission (docs/plant.md): rope, motors. ---
+    # "elastic": each cable is its own spring EA/L (rope modulus × area over its routed
+    # length: lead + in-arm path), pulled by a motor whose position (a PI encoder loop
+    # with speed and force limits, continuum_sim.model.motors) is the actuator's control;
+    # "lumped": the legacy single P-only servo of gain cable_kp standing for motor and cable.
+    cable_model: Literal["elastic", "lumped"] = "elastic"
+    rope_diameter: float = 1.0e-3  # m, nominal diameter of the steel wire rope (*assumed*, docs/plant.md)
+    rope_modulus: float = 73.2e9  # Pa, effective modulus on the nominal area π d²/4: 7x7 302/304 stainless (Loos G factor)
+    cable_lead_length: float = 0.25  # m, rope from the spool through the pack's guides to the arm's base plate (*assumed*)
+    cable_max_force: float = 150.0  # N, motor force rating at the cable = stall torque / spool radius (Fmax)
+    motor_max_speed: float = 0.06  # m/s, motor no-load speed at the cable = spool speed × spool radius
+    motor_kp: float = 40.0  # 1/s, encoder position loop: proportional gain (velocity command per metre of error)
+    motor_ki: float = 400.0  # 1/s², encoder position loop: integral gain (removes the load droop)
+    cable_kp: float = 3.0e4  # N/m, lumped model only: motor position-loop gain expressed at the cable
     cable_kv: float = 0.0  # N·s/m, velocity gain of the motor loop at the cable (explicit, tension-only)
     cable_damping: float = 200.0  # N·s/m, viscous damping along each cable (motor loop + guides; passive, implicit)
     grinder_mass: float = 0.08  # kg; the spindle motor sits in the pack (flexible shaft)
@@ -37,13 +52,21 @@ class ModelOptions:
     tendons: bool = True  # False: joints only (for benchmarks and pure-beam tests)
 
     def __post_init__(self) -> None:
-        if self.joint not in ("ball", "hinge_pair"):
-            raise ConfigError("joint", f"must be 'ball' or 'hinge_pair' (got {self.joint!r})")
+        if self.joint not in ("ball", "hinge_pair", "hinge_triple"):
+            raise ConfigError("joint", f"must be 'ball', 'hinge_pair' or 'hinge_triple' (got {self.joint!r})")
         require_int("segments_per_section", self.segments_per_section, 0, 200, hint=", 0 = physical count")
         require_range("stiffness_scale", self.stiffness_scale, 0.0, 1e4)
         require_range("joint_damping", self.joint_damping, 0.0, 100.0, low_inclusive=True)
         require_range("joint_armature", self.joint_armature, 0.0, 1.0, low_inclusive=True)
+        if self.cable_model not in ("elastic", "lumped"):
+            raise ConfigError("cable_model", f"must be 'elastic' or 'lumped' (got {self.cable_model!r})")
+        require_range("rope_diameter", self.rope_diameter, 0.0, 0.01)
+        require_range("rope_modulus", self.rope_modulus, 0.0, 1e12)
+        require_range("cable_lead_length", self.cable_lead_length, 0.0, 10.0, low_inclusive=True)
         require_positive("cable_max_force", self.cable_max_force)
+        require_range("motor_max_speed", self.motor_max_speed, 0.0, 10.0)
+        require_range("motor_kp", self.motor_kp, 0.0, 1e4)
+        require_range("motor_ki", self.motor_ki, 0.0, 1e6, low_inclusive=True)
         require_positive("cable_kp", self.cable_kp)
         require_range("cable_kv", self.cable_kv, 0.0, 1e6, low_inclusive=True)
         require_range("cable_damping", self.cable_damping, 0.0, 1e6, low_inclusive=True)

@@ -1,0 +1,206 @@
+"""The transmission: elastic cables and the motors' encoder loops (SPEC §6a, docs/plant.md).
+
+Cable. Each cable is a steel wire rope of effective modulus E (on its nominal area
+A = π d²/4) and routed length L = lead + in-arm path (spool → pack guides → base plate →
+holes → anchor disk). It is a spring of stiffness k = E·A/L that only pulls. In the
+MuJoCo model it is the cable's tension-only position actuator: force = k·(x − l),
+clipped to [−Fmax, 0], with l the tendon (in-arm path) length and x the actuator's
+control, the *motor position*: the length of in-arm path at which the cable would just
+be taut, i.e. the motor's encoder reading expressed along the cable. So the cable's
+stretch is l − x and its tension T = k·(l − x) when positive.
+
+Motor. A geared DC motor with an encoder position loop (the prototype's 19 closed-loop
+motor units). Its speed follows the DC motor's torque–speed line: the loop's voltage
+command sets a no-load speed v_cmd (saturated at ±v_max, the speed limit) and the cable's
+load slows the reel-in by droop·T with droop = v_max/Fmax, so at full command the motor
+stalls exactly at the force limit Fmax (= torque / spool radius) and a larger pull
+back-drives it. A proportional loop therefore leaves a steady error droop·T/kp under
+load; the integral term removes it (the encoder loop reaches its set-point under a
+steady load). A velocity feed-forward of the set-point's rate makes ramps track
+without lag.
+
+The motor state is advanced once per control tick (``MotorBank.command``), implicitly
+(backward Euler in the motor position, the integrator and the cable's droop term), so
+the update is stable for any tick length and cable stiffness; within a tick MuJoCo
+holds the motor position (the tick's mean), exactly as it held the legacy set-points.
+Adequacy: with kp = 40 1/s the loop's bandwidth is ≈ 6 Hz (critically damped PI,
+ki = kp²/4 ⇒ double pole at kp/2 = 20 rad/s → 3 Hz per pole), above the arm's first
+bending modes (≈ 1–2 Hz) and below the 125 Hz tick, and the feed-forward takes the
+ramps; a finer motor loop would only sharpen a response the arm cannot follow.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..geometry import ArmGeometry
+from ..kinematics import straight_cable_lengths
+from .options import ModelOptions, model_geometry
+
+Array = NDArray[np.float64]
+
+
+def rope_area(options: ModelOptions) -> float:
+    """Nominal area π d²/4 (m²) of the rope: the area the effective modulus is quoted on."""
+    return math.pi * options.rope_diameter**2 / 4.0
+
+
+def rope_axial_stiffness(options: ModelOptions) -> float:
+    """E·A (N) of the rope."""
+    return options.rope_modulus * rope_area(options)
+
+
+def routed_lengths(geometry: ArmGeometry, options: ModelOptions, in_arm: Array | None = None) -> Array:
+    """(n_cables,) length of rope between spool and anchor: lead + in-arm path (straight arm by default)."""
+    if in_arm is None:
+        in_arm = straight_cable_lengths(model_geometry(geometry, options))
+    return options.cable_lead_length + np.asarray(in_arm, dtype=float)
+
+
+def cable_stiffness(geometry: ArmGeometry, options: ModelOptions, in_arm: Array | None = None) -> Array:
+    """(n_cables,) axial stiffness (N/m) of every cable: EA/L, or the lumped cable_kp.
+
+    Distal cables run through the proximal sections as well, so they are longer and softer.
+    """
+    n = 3 * geometry.n_sections
+    if options.cable_model == "lumped":
+        return np.full(n, float(options.cable_kp))
+    return rope_axial_stiffness(options) / routed_lengths(geometry, options, in_arm)
+
+
+def pretension_offsets(geometry: ArmGeometry, options: ModelOptions, pretension: float) -> Array:
+    """(n_cables,) motor set-point offsets (m) that give ``pretension`` at the planned shape: T/k."""
+    return float(pretension) / cable_stiffness(geometry, options)
+
+
+@dataclass(frozen=True)
+class MotorRatings:
+    """One motor's loop and limits, at the cable (m, m/s, N)."""
+
+    max_speed: float
+    max_force: float
+    kp: float
+    ki: float
+
+    @property
+    def droop(self) -> float:
+        """Speed lost per newton of cable load (m/s/N): the torque–speed line through v_max and Fmax."""
+        return self.max_speed / self.max_force
+
+
+def arm_motor_ratings(options: ModelOptions) -> MotorRatings:
+    return MotorRatings(options.motor_max_speed, options.cable_max_force, options.motor_kp, options.motor_ki)
+
+
+class MotorBank:
+    """The motors of a set of cable actuators: motor positions, PI state, limits.
+
+    ``actuators``/``tendons``: model indices of the cables' actuators and tendons.
+    ``stiffness_ea``: E·A per cable (N) and ``lead``: lead length per cable (m) for the
+    elastic model — the stiffness is re-evaluated every tick from the current routed
+    length (lead + tendon length); None keeps the model's own (lumped) gain.
+    ``ideal``: the lumped legacy model — the set-point goes to the actuator unchanged.
+    """
+
+    def __init__(
+        self,
+        model,
+        actuators: Array,
+        tendons: Array,
+        ratings: MotorRatings,
+        stiffness_ea: Array | None = None,
+        lead: Array | None = None,
+        ideal: bool = False,
+    ) -> None:
+        self.model = model
+        self.actuators = np.asarray(actuators, dtype=int)
+        self.tendons = np.asarray(tendons, dtype=int)
+        self.ratings = ratings
+        n = len(self.actuators)
+        self.ea = None if stiffness_ea is None else np.broadcast_to(np.asarray(stiffness_ea, float), (n,)).copy()
+        self.lead = None if lead is None else np.broadcast_to(np.asarray(lead, float), (n,)).copy()
+        self.ideal = bool(ideal)
+        self.position = np.zeros(n)  # motor positions along the cable (m)
+        self.integral = np.zeros(n)  # ∫ error dt (m·s)
+        self.set_point = np.zeros(n)
+        self._started = False
+
+    def stiffness(self, data) -> Array:
+        """Current cable stiffness (N/m) per motor: EA / (lead + tendon length), or the model's gain."""
+        if self.ea is None or self.lead is None:
+            return self.model.actuator_gainprm[self.actuators, 0].copy()
+        return self.ea / (self.lead + data.ten_length[self.tendons])
+
+    def tensions(self, data) -> Array:
+        """Measured cable tensions (N, ≥ 0) from the actuators' forces."""
+        return -data.actuator_force[self.actuators]
+
+    def reset(self, data, set_points: Array) -> None:
+        """Motors at their set-points with the integrators empty (the run's first tick)."""
+        self.set_point = np.asarray(set_points, dtype=float).copy()
+        self.position = self.set_point.copy()
+        self.integral[:] = 0.0
+        self._started = True
+        self._update_stiffness(data)
+        data.ctrl[self.actuators] = self.position
+
+    def _update_stiffness(self, data) -> None:
+        if self.ea is None or self.lead is None:
+            return
+        k = self.stiffness(data)
+        self.model.actuator_gainprm[self.actuators, 0] = k
+        self.model.actuator_biasprm[self.actuators, 1] = -k
+
+    def command(self, data, set_points: Array, dt: float) -> None:
+        """Advance every motor by one tick of ``dt`` toward ``set_points`` and write the actuators' controls."""
+        s = np.asarray(set_points, dtype=float)
+        if not self._started or dt <= 0.0:
+            self.reset(data, s) if not self._started else None
+            if dt <= 0.0:
+                self.set_point = s.copy()
+                data.ctrl[self.actuators] = self.position
+                return
+        if self.ideal:
+            self.set_point = s.copy()
+            self.position = s.copy()
+            data.ctrl[self.actuators] = s
+            return
+        self._update_stiffness(data)
+        r = self.ratings
+        x, integral = self.position, self.integral
+        v_ff = (s - self.set_point) / dt
+        length = data.ten_length[self.tendons]
+        k = self.stiffness(data)
+        taut = length > x  # the cable pulls on the motor: its droop term acts
+        dk = np.where(taut, r.droop * k, 0.0)
+        # Backward Euler in (x, ∫e): x' = x + dt·(v_cmd + droop·k·(l − x')),
+        # v_cmd = v_ff + kp·(s − x') + ki·(∫e + dt·(s − x')).
+        a = r.kp + r.ki * dt
+        x_new = (x + dt * (v_ff + a * s + r.ki * integral + dk * length)) / (1.0 + dt * (a + dk))
+        v_cmd = v_ff + a * (s - x_new) + r.ki * integral
+        saturated = np.abs(v_cmd) > r.max_speed
+        if np.any(saturated):
+            # Voltage at its limit: the command is ±v_max and the integrator holds (anti-windup).
+            v_sat = np.clip(v_cmd, -r.max_speed, r.max_speed)
+            x_sat = (x + dt * (v_sat + dk * length)) / (1.0 + dt * dk)
+            x_new = np.where(saturated, x_sat, x_new)
+        integral = np.where(saturated, integral, integral + dt * (s - x_new))
+        x_mean = 0.5 * (x + x_new)
+        self.position = x_new
+        self.integral = integral
+        self.set_point = s.copy()
+        data.ctrl[self.actuators] = x_mean
+
+
+def arm_motor_bank(model, actuators: Array, tendons: Array, geometry: ArmGeometry, options: ModelOptions) -> MotorBank:
+    """The motors of one arm's cables, as configured (elastic or lumped)."""
+    n = len(actuators)
+    if options.cable_model == "lumped":
+        return MotorBank(model, actuators, tendons, arm_motor_ratings(options), ideal=True)
+    ea = np.full(n, rope_axial_stiffness(options))
+    lead = np.full(n, options.cable_lead_length)
+    return MotorBank(model, actuators, tendons, arm_motor_ratings(options), stiffness_ea=ea, lead=lead)
