@@ -1,25 +1,37 @@
-"""Scenario speed: real-time factor without video, and video frames/s vs a bare renderer.
+"""Scenario speed in CPU time: real-time factor of the whole run without video, configurations
+compared interleaved in one process, and the video recorder against a bare renderer.
 
-Prints JSON. Both comparisons run in this process, on the same compiled scene, so the
-ratios hold on a noisy machine:
+These machines are shared: wall time says more about the neighbours than about the code
+(one run took 14 s wall at load 5 and 6.7 s at load 1.6). So the figure of merit is CPU
+time of this process (``time.process_time``: the physics is single-threaded), every
+configuration is run ``--repeat`` times *interleaved* (A B A B …, so a change of load hits
+all of them alike), the minimum over repeats is reported, and the load average seen is
+printed with the result.
 
-* ``scenario``: the whole sample-removal run (plan, control, cutting, recording) without
-  video, against plain ``mj_step`` of the same model for the same simulated time, and
-  split by the run's own wall-time breakdown (``physics_only_real_time_factor``: the
-  time inside ``mj_step`` during the run, the ceiling if all the Python were free);
-* ``video``: ``VideoRecorder`` (render every camera, tile, encode to MP4) against a bare
-  ``mujoco.Renderer`` loop that renders the same cameras at the same size.
+* ``scenario``: for each configuration (``--config NAME=PATH=VALUE[,PATH=VALUE]``; the
+  default configuration is always ``default``): CPU seconds and ``cpu_real_time_factor``
+  (simulated s / CPU s) of the whole run (plan, build, control, cutting, records,
+  metrics), the time inside ``mj_step`` and the task metrics; ratios against ``default``
+  and whether the task metrics are identical to it.
+* ``bare_mj_step``: plain ``mj_step`` of the same scene for the same simulated time.
+* ``video`` (``--frames N``, 0 skips it): the run's ``VideoRecorder`` (parallel render
+  workers) against a bare in-process ``mujoco.Renderer`` rendering the same cameras at the
+  same size and tessellation, wall time (the recorder spreads over processes).
 
-    python benchmarks/scenario.py [--stages initial,clamping] [--frames 60]
+    python benchmarks/scenario.py [--repeat 3] [--stages initial,clamping] [--frames 60]
+        [--config stiff=model.stiffness_scale=2] [--out benchmarks/scenario.json]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import statistics
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 from continuum_sim.glbackend import choose_gl_backend
 
@@ -27,92 +39,148 @@ choose_gl_backend()
 
 import mujoco  # noqa: E402
 
+from continuum_sim.configio import replace_path  # noqa: E402
 from continuum_sim.scenario.config import ScenarioConfig  # noqa: E402
+from continuum_sim.scenario.metrics import WALL_CLOCK_METRICS  # noqa: E402
 from continuum_sim.scenario.runner import build_scene_model, run_scenario  # noqa: E402
-from continuum_sim.video import VideoRecorder  # noqa: E402
+from continuum_sim.video import VIDEO_SLICES, VideoRecorder  # noqa: E402
+
+GOAL_CPU_REAL_TIME_FACTOR = 12.0
+FLOOR_CPU_REAL_TIME_FACTOR = 10.0
+
+
+def _task_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
+    """The metrics a run computes from its physics (wall-clock keys dropped)."""
+    return {k: v for k, v in metrics.items() if k not in WALL_CLOCK_METRICS}
+
+
+def _config_variant(spec: str) -> tuple[str, ScenarioConfig]:
+    """``NAME=PATH=VALUE[,PATH=VALUE…]`` -> (name, the default config with those values)."""
+    name, _, assignments = spec.partition("=")
+    config = ScenarioConfig.default()
+    for item in filter(None, assignments.split(",")):
+        path, _, raw = item.partition("=")
+        try:
+            value: Any = json.loads(raw)
+        except json.JSONDecodeError:
+            value = raw.strip()
+        config = replace_path(config, path.strip(), value)
+    return name, config
 
 
 def bare_stepping(model: mujoco.MjModel, seconds: float) -> float:
-    """Wall seconds of plain mj_step for ``seconds`` of simulated time (cables held)."""
+    """CPU seconds of plain mj_step for ``seconds`` of simulated time (cables held)."""
     data = mujoco.MjData(model)
     data.ctrl[:] = model.actuator_ctrlrange.mean(axis=1)
     mujoco.mj_forward(model, data)
-    start = time.perf_counter()
-    for _ in range(int(round(seconds / model.opt.timestep))):
-        mujoco.mj_step(model, data)
-    return time.perf_counter() - start
+    start = time.process_time()
+    mujoco.mj_step(model, data, nstep=int(round(seconds / model.opt.timestep)))
+    return time.process_time() - start
+
+
+def run_once(config: ScenarioConfig, stages: tuple[str, ...] | None) -> dict[str, Any]:
+    cpu0, wall0 = time.process_time(), time.perf_counter()
+    metrics = run_scenario(config, None, stages=stages)
+    return {"cpu_s": time.process_time() - cpu0, "wall_s": time.perf_counter() - wall0, "metrics": metrics}
+
+
+def video_comparison(config: ScenarioConfig, frames: int) -> dict[str, Any]:
+    """Wall time of the recorder (workers) and of a bare in-process renderer on the same frames."""
+    sim = config.simulation
+    _, model = build_scene_model(config)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    with tempfile.TemporaryDirectory() as tmp:
+        start = time.perf_counter()
+        with VideoRecorder(model, Path(tmp) / "v.mp4", sim.cameras, sim.video_width, sim.video_height, sim.video_fps) as video:
+            for _ in range(frames):
+                video.next_time = data.time
+                video.maybe_capture(data)
+        recorder_wall = time.perf_counter() - start  # includes worker start-up and the final join
+        workers = video.workers
+    model.light_castshadow[:] = 0
+    model.vis.quality.offsamples = 0
+    model.vis.quality.numslices, model.vis.quality.numstacks = VIDEO_SLICES["fast"]
+    model.vis.global_.offwidth = max(model.vis.global_.offwidth, sim.video_width)
+    model.vis.global_.offheight = max(model.vis.global_.offheight, sim.video_height)
+    with mujoco.Renderer(model, sim.video_height, sim.video_width) as renderer:
+        start = time.perf_counter()
+        for _ in range(frames):
+            for name in sim.cameras:
+                renderer.update_scene(data, camera=name)
+                renderer.render()
+        bare_wall = time.perf_counter() - start
+    return {
+        "cameras": list(sim.cameras),
+        "size": [sim.video_width, sim.video_height],
+        "frames": frames,
+        "workers": workers,
+        "recorder_fps_wall": round(frames / recorder_wall, 2),
+        "bare_renderer_fps_wall": round(frames / bare_wall, 2),
+        "ratio": round(bare_wall / recorder_wall, 3),
+        "goal_ratio": 0.8,
+    }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--stages", default="", help="comma-separated stages (default: the whole task)")
-    parser.add_argument("--frames", type=int, default=60, help="video frames to time")
+    parser.add_argument("--repeat", type=int, default=3, help="interleaved repeats of every configuration")
+    parser.add_argument("--config", action="append", default=[], help="NAME=PATH=VALUE[,PATH=VALUE]: a configuration to compare")
+    parser.add_argument("--frames", type=int, default=60, help="video frames to time (0: skip)")
+    parser.add_argument("--out", type=Path, help="also write the JSON here")
     args = parser.parse_args()
-    config = ScenarioConfig.default()
     stages = tuple(s for s in args.stages.split(",") if s) or None
+    configs = dict([("default", ScenarioConfig.default())] + [_config_variant(spec) for spec in args.config])
 
-    start = time.perf_counter()
-    metrics = run_scenario(config, None, stages=stages)
-    run_wall = time.perf_counter() - start
-    _, model = build_scene_model(config)
-    step_wall = bare_stepping(model, metrics["sim_seconds"])
+    load_before = os.getloadavg()
+    runs: dict[str, list[dict[str, Any]]] = {name: [] for name in configs}
+    for _ in range(args.repeat):
+        for name, config in configs.items():  # interleaved: A B A B …
+            runs[name].append(run_once(config, stages))
+    load_after = os.getloadavg()
 
-    sim = config.simulation
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    with tempfile.TemporaryDirectory() as tmp:
-        with VideoRecorder(model, Path(tmp) / "v.mp4", sim.cameras, sim.video_width, sim.video_height, sim.video_fps) as video:
-            video.maybe_capture(data)  # warm-up: GL context, encoder start
-            start = time.perf_counter()
-            for _ in range(args.frames):
-                video.next_time = data.time
-                video.maybe_capture(data)
-            video_wall = time.perf_counter() - start
-    with mujoco.Renderer(model, sim.video_height, sim.video_width) as renderer:
-        for name in sim.cameras:
-            renderer.update_scene(data, camera=name)
-            renderer.render()
-        start = time.perf_counter()
-        for _ in range(args.frames):
-            for name in sim.cameras:
-                renderer.update_scene(data, camera=name)
-                renderer.render()
-        bare_wall = time.perf_counter() - start
-
-    breakdown = metrics["wall_breakdown_s"]
-    video_fps = args.frames / video_wall
-    bare_fps = args.frames / bare_wall
-    print(
-        json.dumps(
-            {
-                "scenario": {
-                    "stages": list(stages) if stages else "all",
-                    "sim_seconds": round(metrics["sim_seconds"], 3),
-                    "wall_seconds": round(run_wall, 3),
-                    "real_time_factor": round(metrics["sim_seconds"] / run_wall, 3),
-                    # mj_step inside the run (contacts, grasp, cutting): the ceiling if all
-                    # Python (plan, control, records) were free.
-                    "physics_only_real_time_factor": round(metrics["sim_seconds"] / breakdown["physics_mj_step"], 3),
-                    "wall_breakdown_s": {k: round(v, 3) for k, v in breakdown.items()},
-                    # mj_step of the same scene with the arms held and nothing touching.
-                    "bare_mj_step_real_time_factor": round(metrics["sim_seconds"] / step_wall, 3),
-                    "overhead_vs_bare_stepping": round(run_wall / step_wall, 3),
-                    "timestep_s": model.opt.timestep,
-                    "goal_real_time_factor": 10.0,
-                },
-                "video": {
-                    "cameras": list(sim.cameras),
-                    "size": [sim.video_width, sim.video_height],
-                    "frames": args.frames,
-                    "recorder_fps": round(video_fps, 2),
-                    "bare_renderer_fps": round(bare_fps, 2),
-                    "ratio": round(video_fps / bare_fps, 3),
-                    "goal_ratio": 0.8,
-                },
-            },
-            indent=2,
-        )
-    )
+    reference = _task_metrics(runs["default"][0]["metrics"])
+    scenario: dict[str, Any] = {}
+    for name, results in runs.items():
+        sim_seconds = results[0]["metrics"]["sim_seconds"]
+        cpu = [r["cpu_s"] for r in results]
+        physics = [r["metrics"]["wall_breakdown_s"]["physics_mj_step"] for r in results]
+        first = _task_metrics(results[0]["metrics"])
+        scenario[name] = {
+            "sim_seconds": round(sim_seconds, 3),
+            "cpu_seconds_min": round(min(cpu), 3),
+            "cpu_seconds_median": round(statistics.median(cpu), 3),
+            "cpu_real_time_factor": round(sim_seconds / min(cpu), 3),
+            "wall_seconds_min": round(min(r["wall_s"] for r in results), 3),
+            "mj_step_real_time_factor": round(sim_seconds / min(physics), 3),
+            "repeat_identical": all(_task_metrics(r["metrics"]) == first for r in results),
+            "task_metrics_identical_to_default": first == reference,
+            "cpu_ratio_vs_default": round(min(cpu) / min(r["cpu_s"] for r in runs["default"]), 3),
+            "cutting_tip_error_mm": results[0]["metrics"].get("cutting_tip_error_mm"),
+            "sample_detached": results[0]["metrics"].get("sample_detached"),
+        }
+    _, model = build_scene_model(configs["default"])
+    bare = bare_stepping(model, scenario["default"]["sim_seconds"])
+    out: dict[str, Any] = {
+        "measured": time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime()),
+        "machine": {"cpus": os.cpu_count(), "load_avg_1_5_15_before": [round(x, 2) for x in load_before],
+                    "load_avg_1_5_15_after": [round(x, 2) for x in load_after]},
+        "stages": list(stages) if stages else "all",
+        "repeat": args.repeat,
+        "timestep_s": model.opt.timestep,
+        "goal_cpu_real_time_factor": GOAL_CPU_REAL_TIME_FACTOR,
+        "floor_cpu_real_time_factor": FLOOR_CPU_REAL_TIME_FACTOR,
+        "cpu_real_time_factor": scenario["default"]["cpu_real_time_factor"],
+        "scenario": scenario,
+        "bare_mj_step_cpu_real_time_factor": round(scenario["default"]["sim_seconds"] / bare, 3),
+    }
+    if args.frames > 0:
+        out["video"] = video_comparison(configs["default"], args.frames)
+    text = json.dumps(out, indent=2)
+    print(text)
+    if args.out is not None:
+        args.out.write_text(text + "\n")
 
 
 if __name__ == "__main__":
