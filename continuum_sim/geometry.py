@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
@@ -38,6 +39,13 @@ class SectionGeometry:
     n_segments: int = 10  # assumed
     cable_angles_deg: tuple[float, float, float] = (0.0, 120.0, 240.0)  # assumed
     max_bend_deg: float = 90.0
+    # Flexure leaves (docs/model.md "Segment stiffness"): centroid distance from the
+    # joint axis, angular positions in the disk frame, and free length between the disk
+    # faces (0 = the whole gap, pitch − disk thickness). Hinge width is tangential,
+    # hinge thickness radial.
+    leaf_radius: float = 0.0
+    leaf_angles_deg: tuple[float, float, float] = (0.0, 120.0, 240.0)
+    leaf_free_length: float = 0.0
 
     def __post_init__(self) -> None:
         require_positive("length", self.length)
@@ -45,6 +53,12 @@ class SectionGeometry:
         require_positive("hinge_width", self.hinge_width)
         require_positive("hinge_thickness", self.hinge_thickness)
         require_int("n_segments", self.n_segments, 1, 200)
+        require_range("leaf_radius", self.leaf_radius, 0.0, 1.0, low_inclusive=True)
+        require_range("leaf_free_length", self.leaf_free_length, 0.0, 1.0, low_inclusive=True)
+        if len(self.leaf_angles_deg) != 3:
+            raise ConfigError("leaf_angles_deg", f"must have exactly 3 entries (got {len(self.leaf_angles_deg)})")
+        for i, angle in enumerate(self.leaf_angles_deg):
+            require_range(f"leaf_angles_deg[{i}]", angle, -360.0, 360.0, low_inclusive=True)
         if len(self.cable_angles_deg) != 3:
             raise ConfigError("cable_angles_deg", f"must have exactly 3 entries (got {len(self.cable_angles_deg)})")
         for i, angle in enumerate(self.cable_angles_deg):
@@ -54,11 +68,6 @@ class SectionGeometry:
         if gaps.min() < 10.0:
             raise ConfigError("cable_angles_deg", f"cable holes must be at least 10 deg apart (got {self.cable_angles_deg})")
         require_range("max_bend_deg", self.max_bend_deg, 0.0, 180.0)
-        if self.hinge_width >= self.disk_diameter / 2:
-            raise ConfigError(
-                "hinge_width",
-                f"must satisfy 0 < hinge_width < disk_diameter/2 = {self.disk_diameter / 2:g} (got {self.hinge_width:g})",
-            )
 
     @property
     def pitch(self) -> float:
@@ -74,10 +83,73 @@ class SectionGeometry:
     def cable_angles(self) -> np.ndarray:
         return np.radians(np.asarray(self.cable_angles_deg, dtype=float))
 
+    @property
+    def leaf_angles(self) -> np.ndarray:
+        return np.radians(np.asarray(self.leaf_angles_deg, dtype=float))
+
+    def leaf_length(self, disk_thickness: float) -> float:
+        """Free length g of each leaf between the disks (the gap unless set shorter)."""
+        return self.leaf_free_length if self.leaf_free_length > 0.0 else self.pitch - disk_thickness
+
+    def check_leaves(self, disk_thickness: float) -> None:
+        """Raise unless the three leaves fit inside the disk and inside the gap between disks."""
+        gap = self.pitch - disk_thickness
+        if self.leaf_free_length > gap:
+            raise ConfigError(
+                "leaf_free_length",
+                f"must satisfy 0 <= leaf_free_length <= pitch - disk_thickness = {gap:g} (got {self.leaf_free_length:g})",
+            )
+        reach = math.hypot(self.leaf_radius + self.hinge_thickness / 2.0, self.hinge_width / 2.0)
+        if reach >= self.disk_diameter / 2.0:
+            raise ConfigError(
+                "leaf_radius",
+                f"leaves reach {reach:g} m from the axis (leaf_radius, hinge_width, hinge_thickness); "
+                f"must stay inside the disk radius {self.disk_diameter / 2:g}",
+            )
+
+
+@dataclass(frozen=True)
+class RodBackbone:
+    """A central elastic rod as every segment's spring (``ArmGeometry.backbone = "rod"``).
+
+    Defaults: superelastic nitinol. E = 50 GPa: NiTi wire datasheets give 41–75 GPa
+    for the austenite loading modulus and 28–41 GPa for martensite; 50 GPa is the value
+    the OpenCR-MuJoCo FTDCR model uses for its nitinol rod. ν = 0.3 (metal, typical),
+    density 6450 kg/m³ (NiTi datasheet). Radius 1 mm (*assumed*): a rod's EI = Eπr⁴/4
+    then has the order of the flexure segments' EI_sec, and its surface strain r·κ at
+    90° over the shortest section (150 mm) is 1.05 %, well inside NiTi's ~6 %
+    recoverable strain.
+    """
+
+    radius: float = 1.0e-3
+    youngs_modulus: float = 50.0e9
+    poisson_ratio: float = 0.3
+    density: float = 6450.0
+
+    def __post_init__(self) -> None:
+        require_range("radius", self.radius, 0.0, 0.1)
+        require_range("youngs_modulus", self.youngs_modulus, 0.0, 1e13)
+        require_range("poisson_ratio", self.poisson_ratio, -1.0, 0.5, high_inclusive=False)
+        require_range("density", self.density, 0.0, 1e5, low_inclusive=True)
+
+    @property
+    def shear_modulus(self) -> float:
+        return self.youngs_modulus / (2.0 * (1.0 + self.poisson_ratio))
+
+    @property
+    def second_moment(self) -> float:
+        """I = πr⁴/4 (bending, either axis)."""
+        return math.pi * self.radius**4 / 4.0
+
+    @property
+    def polar_moment(self) -> float:
+        """J = πr⁴/2 (torsion of a solid circular rod)."""
+        return math.pi * self.radius**4 / 2.0
+
 
 @dataclass(frozen=True)
 class Material:
-    """Flexure-hinge material (printed polymer by default; *assumed*)."""
+    """Flexure-hinge (and disk) material (printed polymer by default; *assumed*)."""
 
     youngs_modulus: float = 2.0e9
     poisson_ratio: float = 0.38
@@ -133,6 +205,13 @@ class ArmGeometry:
     spool_radius: float = 0.010  # assumed: motor spool radius, converts Δl to motor angle
     material: Material = field(default_factory=Material)
     tools: ToolGeometry = field(default_factory=ToolGeometry)
+    # The segments' spring: "flexure" (three leaves per segment, Table 1) or "rod" (one
+    # central elastic rod through all disks, ``rod``; the leaf fields are then unused).
+    backbone: Literal["flexure", "rod"] = "flexure"
+    rod: RodBackbone = field(default_factory=RodBackbone)
+    # The central joint of a flexure segment: "ball" (3 rotations free: the leaves alone
+    # resist twist) or "universal" (twist blocked by the joint). Paper text: ball joint.
+    central_joint: Literal["ball", "universal"] = "ball"
 
     def __post_init__(self) -> None:
         if not isinstance(self.sections, tuple) or not 1 <= len(self.sections) <= 10:
@@ -140,6 +219,10 @@ class ArmGeometry:
         for i, section in enumerate(self.sections):
             if not isinstance(section, SectionGeometry):
                 raise ConfigError(f"sections[{i}]", "must be a section table")
+        if self.backbone not in ("flexure", "rod"):
+            raise ConfigError("backbone", f"must be 'flexure' or 'rod' (got {self.backbone!r})")
+        if self.central_joint not in ("ball", "universal"):
+            raise ConfigError("central_joint", f"must be 'ball' or 'universal' (got {self.central_joint!r})")
         require_range("disk_thickness", self.disk_thickness, 0.0, 0.1)
         require_range("spool_radius", self.spool_radius, 0.0, 1.0)
         smallest = min(s.disk_diameter for s in self.sections) / 2.0
@@ -157,6 +240,13 @@ class ArmGeometry:
                     f"must be smaller than every segment pitch; section {i} has pitch "
                     f"{section.pitch:g} m (got {self.disk_thickness:g})",
                 )
+            if self.backbone == "flexure":
+                try:
+                    section.check_leaves(self.disk_thickness)
+                except ConfigError as exc:
+                    raise exc.under(f"sections[{i}]") from None
+            elif self.rod.radius >= section.disk_diameter / 2.0:
+                raise ConfigError("rod.radius", f"must be smaller than every disk radius (section {i}: {section.disk_diameter / 2:g} m)")
 
     # -------------------------------------------------------------- construction
     @classmethod

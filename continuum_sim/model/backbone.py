@@ -15,7 +15,8 @@ from typing import Literal
 from ..configio import ConfigError
 
 JointKind = Literal["ball", "hinge_pair", "hinge_triple"]
-# hinge_pair: joint i (1-based) is Rx·Ry for odd i and Ry·Rx for even i (see _add_joints).
+# hinge_pair: joint i (1-based) is Rx·Ry for odd i and Ry·Rx for even i (see _add_joints);
+# hinge_triple: Rx·Ry·Rz on every joint, the twist hinge with its own spring.
 
 
 @dataclass(frozen=True)
@@ -26,11 +27,12 @@ class LinkSpec:
     radius: float  # geom radius
     half_length: float  # geom half length along z
     mass: float
-    bending_stiffness: float  # N·m/rad about x and y
+    bending_stiffness: float  # N·m/rad about x (and y unless bending_stiffness_y is given)
     twist_stiffness: float  # N·m/rad about z (hinge_triple only; a ball joint's spring is isotropic)
     damping: float
     armature: float = 0.0
     shape: Literal["cylinder", "capsule"] = "cylinder"
+    bending_stiffness_y: float | None = None  # N·m/rad about y when the segment is anisotropic
 
     def __post_init__(self) -> None:
         for name in ("pitch", "radius", "half_length", "mass"):
@@ -39,23 +41,33 @@ class LinkSpec:
         for name in ("bending_stiffness", "twist_stiffness", "damping", "armature"):
             if not getattr(self, name) >= 0:
                 raise ConfigError(name, f"must be >= 0 (got {getattr(self, name)!r})")
+        if self.bending_stiffness_y is not None and not self.bending_stiffness_y >= 0:
+            raise ConfigError("bending_stiffness_y", f"must be >= 0 (got {self.bending_stiffness_y!r})")
+
+    @property
+    def stiffness_y(self) -> float:
+        """Bending stiffness about y (equal to x unless given)."""
+        return self.bending_stiffness if self.bending_stiffness_y is None else self.bending_stiffness_y
 
 
 def _add_joints(body, index: int, link: LinkSpec, kind: JointKind) -> None:
     pos = (0.0, 0.0, -link.pitch / 2.0)
     common = dict(pos=pos, damping=link.damping, armature=link.armature)
     if kind == "ball":
-        body.add("joint", name=f"joint_{index}", type="ball", stiffness=link.bending_stiffness, **common)
+        # MuJoCo's ball-joint spring is isotropic: the mean bending stiffness, also in twist.
+        stiffness = 0.5 * (link.bending_stiffness + link.stiffness_y)
+        body.add("joint", name=f"joint_{index}", type="ball", stiffness=stiffness, **common)
         return
-    axes = [("x", (1, 0, 0), link.bending_stiffness), ("y", (0, 1, 0), link.bending_stiffness)]
+    if kind not in ("hinge_pair", "hinge_triple"):
+        raise ConfigError("joint", f"must be 'ball', 'hinge_pair' or 'hinge_triple' (got {kind!r})")
+    axes = [("x", (1, 0, 0), link.bending_stiffness), ("y", (0, 1, 0), link.stiffness_y)]
     if kind == "hinge_pair" and index % 2 == 0:
         # Alternate the order (x-y, y-x, …): a universal joint adds a second-order twist
         # ±ab/2 whose sign flips with the order, so consecutive joints cancel it.
         axes.reverse()
     if kind == "hinge_triple":
+        # Rx·Ry·Rz on every joint (a twist DoF with its own spring absorbs the second-order twist).
         axes.append(("z", (0, 0, 1), link.twist_stiffness))
-    elif kind != "hinge_pair":
-        raise ConfigError("joint", f"must be 'ball', 'hinge_pair' or 'hinge_triple' (got {kind!r})")
     for suffix, axis, stiffness in axes:
         body.add("joint", name=f"joint_{index}_{suffix}", type="hinge", axis=axis, stiffness=stiffness, **common)
 

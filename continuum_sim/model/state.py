@@ -48,8 +48,27 @@ def hinge_pair_angles(geometry: ArmGeometry, q: ArrayLike) -> np.ndarray:
     return np.column_stack([a, b])
 
 
+def hinge_triple_angles(geometry: ArmGeometry, q: ArrayLike) -> np.ndarray:
+    """(n_joints, 3) angles (a, b, c) with Rx(a)·Ry(b)·Rz(c) equal to each PCC joint rotation.
+
+    The twist hinge makes the XYZ Euler decomposition exact: c ≈ −ab/2 is the
+    second-order twist a universal pair would otherwise add.
+    """
+    rv = segment_rotation_vectors(geometry, q)
+    out = np.zeros((len(rv), 3))
+    for i, w in enumerate(rv):
+        angle = float(np.linalg.norm(w))
+        if angle == 0.0:
+            continue
+        k = w / angle
+        kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+        r = np.eye(3) + np.sin(angle) * kx + (1.0 - np.cos(angle)) * kx @ kx
+        out[i] = (np.arctan2(-r[1, 2], r[2, 2]), np.arcsin(np.clip(r[0, 2], -1.0, 1.0)), np.arctan2(-r[0, 1], r[0, 0]))
+    return out
+
+
 def arm_qpos_addresses(model, arm: str, n_joints: int, joint: str) -> np.ndarray:
-    """qpos addresses of an arm's joints, in disk order (ball: 4 each, hinge_pair: 2 each)."""
+    """qpos addresses of an arm's joints, in disk order (ball: 4 each, hinge_pair: 2, hinge_triple: 3)."""
     import mujoco
 
     addresses = []
@@ -58,7 +77,7 @@ def arm_qpos_addresses(model, arm: str, n_joints: int, joint: str) -> np.ndarray
             jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{arm}/joint_{i}")
             addresses.extend(range(model.jnt_qposadr[jid], model.jnt_qposadr[jid] + 4))
         else:
-            for suffix in ("x", "y"):
+            for suffix in ("x", "y", "z") if joint == "hinge_triple" else ("x", "y"):
                 jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{arm}/joint_{i}_{suffix}")
                 addresses.append(model.jnt_qposadr[jid])
         if min(addresses[-2:]) < 0:
@@ -70,5 +89,10 @@ def set_arm_configuration(model, data, model_geometry: ArmGeometry, arm: str, q:
     """Write the PCC configuration q of ``arm`` into ``data.qpos`` (call mj_forward after)."""
     n = sum(s.n_segments for s in model_geometry.sections)
     addresses = arm_qpos_addresses(model, arm, n, joint)
-    values = ball_quaternions(model_geometry, q) if joint == "ball" else hinge_pair_angles(model_geometry, q)
+    if joint == "ball":
+        values = ball_quaternions(model_geometry, q)
+    elif joint == "hinge_triple":
+        values = hinge_triple_angles(model_geometry, q)
+    else:
+        values = hinge_pair_angles(model_geometry, q)
     data.qpos[addresses] = values.ravel()

@@ -1,36 +1,107 @@
-"""Flexure-hinge stiffness of a segment, and its scaling to any model segment count.
+"""Segment stiffness (bend about x and y, twist about z) and its scaling to any model segment count.
 
-Each physical segment joins two disks by a central ball joint and three identical leaf
-hinges (width w, thickness t) at 120°, free length g = pitch − disk thickness between
-the disks. Assumptions:
+Flexure backbone (``ArmGeometry.backbone = "flexure"``; derivation in docs/model.md,
+"Segment stiffness"): one segment joins two rigid disks by a central joint at mid-gap
+and three straight leaves of width w (tangential), thickness t (radial) and free length
+g, clamped in both disks, their centroids at radius r and angles α_i. A small rotation
+ω of the upper disk about the joint centre moves leaf i's upper end by ω × (p_i + g/2·e_z)
+and turns it by ω, so each leaf is a clamped–clamped beam loaded at one end:
 
-* each leaf is an Euler–Bernoulli strip in pure bending about the ball joint (the ball
-  joint carries the axial and shear loads), so its rotational stiffness is E·I/g;
-* a leaf's cross-section is w (tangential) × t (radial); bending about an axis at angle
-  ψ to its tangential axis uses E(I_easy cos²ψ + I_hard sin²ψ)/g with
-  I_easy = w t³/12 and I_hard = t w³/12;
-* three leaves at 120°: Σcos²ψ = Σsin²ψ = 3/2 for every ψ, so the segment is isotropic
-  in bending:
+* bending about an in-plane axis: the leaf's end slides g/2·θ while it turns θ — a
+  constant-curvature arc with zero shear force, energy ½·E·I_n/g·θ² (I_n: the leaf's
+  second moment about the bending axis: I_hard = t w³/12 about its radial axis,
+  I_easy = w t³/12 about its tangential axis);
+* the same rotation lifts the leaf's end by (ω × p_i)_z, so a leaf off the axis
+  stretches: energy ½·(EA/g)·(ω × p_i)_z², A = w·t — the term that dominates once r
+  exceeds a few millimetres;
+* twist ω_z turns each leaf end about its own axis (St Venant torsion of a thin strip,
+  GJ/g with J = w t³/3·(1 − 0.63 t/w)) and slides it r·ω_z tangentially without turning
+  it (clamped–guided beam bent about its hard axis, shear included because w/g is not
+  small: k = 12EI_hard/g³/(1 + Φ), Φ = 12EI_hard/(κGAg²), κ = 5/6).
 
-      K_seg = (3/2)·E·(I_easy + I_hard)/g = E·w·t·(w² + t²) / (8 g)
+Summing the three leaves gives a 3×3 segment stiffness matrix about the joint centre;
+three leaves 120° apart make it diagonal and isotropic in bending. A universal central
+joint blocks twist (infinite twist stiffness). The central joint carries every force.
 
-The section's equivalent bending stiffness is EI_sec = K_seg·pitch (M = EI·κ with
-κ = (θ/n)/pitch), and a model with n_model joints per section uses
-k_joint = n_model·EI_sec/L, so the section bends the same whatever n_model is.
-MuJoCo's ball-joint spring is isotropic: the twist stiffness equals the bending one
-(the leaves' real twist stiffness is higher; the hinge-pair option locks twist).
+Rod backbone (``backbone = "rod"``): joint i stands for a rod piece of one pitch p, so
+K_bend = EI/p and K_twist = GJ/p with I = πr⁴/4 and J = πr⁴/2.
+
+A section's equivalent continuous rigidity is K_seg·pitch (M = EI·κ with κ = (θ/n)/pitch),
+and a model with n_model joints per section uses k_joint = n_model·EI_sec/L, so the
+section bends the same whatever n_model is.
 """
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
+
 from ..geometry import ArmGeometry, SectionGeometry
+
+SHEAR_COEFFICIENT_RECT = 5.0 / 6.0  # Timoshenko shear coefficient of a rectangular section
+
+
+def strip_torsion_constant(width: float, thickness: float) -> float:
+    """St Venant torsion constant of a thin rectangular strip, J ≈ b t³/3·(1 − 0.63 t/b) (Roark)."""
+    b, t = max(width, thickness), min(width, thickness)
+    return b * t**3 / 3.0 * (1.0 - 0.63 * t / b)
+
+
+def leaf_lever_arms(section: SectionGeometry) -> np.ndarray:
+    """(3, 2) in-plane leaf centroid positions (x, y) in the disk frame."""
+    a = section.leaf_angles
+    return section.leaf_radius * np.column_stack([np.cos(a), np.sin(a)])
+
+
+def flexure_segment_stiffness_matrix(geometry: ArmGeometry, section: SectionGeometry) -> np.ndarray:
+    """3×3 stiffness (N·m/rad) of one flexure segment about its joint centre, axes (x, y, z) of the disk.
+
+    The twist entry is ``inf`` for a universal central joint.
+    """
+    mat = geometry.material
+    e, shear = mat.youngs_modulus, mat.shear_modulus
+    w, t = section.hinge_width, section.hinge_thickness
+    g = section.leaf_length(geometry.disk_thickness)
+    area = w * t
+    i_hard, i_easy = t * w**3 / 12.0, w * t**3 / 12.0
+    phi = 12.0 * e * i_hard / (SHEAR_COEFFICIENT_RECT * shear * area * g * g)
+    k_slide = 12.0 * e * i_hard / g**3 / (1.0 + phi)  # clamped-guided, hard axis, with shear
+    gj = shear * strip_torsion_constant(w, t)
+    k = np.zeros((3, 3))
+    for (x, y), alpha in zip(leaf_lever_arms(section), section.leaf_angles):
+        er = np.array([math.cos(alpha), math.sin(alpha)])
+        et = np.array([-math.sin(alpha), math.cos(alpha)])
+        # bending about in-plane axes: E/g·(I_hard er⊗er + I_easy et⊗et)
+        k[:2, :2] += e / g * (i_hard * np.outer(er, er) + i_easy * np.outer(et, et))
+        # stretching: lift (ω × p)_z = ωx·y − ωy·x
+        lever = np.array([y, -x, 0.0])
+        k += e * area / g * np.outer(lever, lever)
+        # twist: own torsion + tangential slide r·ωz
+        k[2, 2] += gj / g + k_slide * (x * x + y * y)
+    if geometry.central_joint == "universal":
+        k[2, 2] = math.inf
+    return k
+
+
+def segment_stiffness(geometry: ArmGeometry, section: SectionGeometry) -> tuple[float, float, float]:
+    """(K_x, K_y, K_twist) in N·m/rad of one physical segment (the diagonal the model's joints get).
+
+    Off-diagonal terms (zero for leaves 120° apart) are not represented by the joints.
+    """
+    if geometry.backbone == "rod":
+        rod = geometry.rod
+        p = section.pitch
+        ei, gj = rod.youngs_modulus * rod.second_moment, rod.shear_modulus * rod.polar_moment
+        return ei / p, ei / p, gj / p
+    k = flexure_segment_stiffness_matrix(geometry, section)
+    return float(k[0, 0]), float(k[1, 1]), float(k[2, 2])
 
 
 def segment_bending_stiffness(geometry: ArmGeometry, section: SectionGeometry) -> float:
-    """K_seg (N·m/rad) of one physical segment of ``section``."""
-    w, t = section.hinge_width, section.hinge_thickness
-    g = section.pitch - geometry.disk_thickness
-    return geometry.material.youngs_modulus * w * t * (w * w + t * t) / (8.0 * g)
+    """K_seg (N·m/rad): one physical segment's bending stiffness, mean of the x and y axes."""
+    kx, ky, _ = segment_stiffness(geometry, section)
+    return 0.5 * (kx + ky)
 
 
 def section_bending_rigidity(geometry: ArmGeometry, section: SectionGeometry) -> float:
@@ -38,7 +109,19 @@ def section_bending_rigidity(geometry: ArmGeometry, section: SectionGeometry) ->
     return segment_bending_stiffness(geometry, section) * section.pitch
 
 
-def joint_stiffness(geometry: ArmGeometry, section_index: int, n_model: int, scale: float = 1.0) -> float:
-    """Per-joint stiffness k = n_model·EI_sec/L for a model with ``n_model`` joints."""
+def joint_stiffnesses(geometry: ArmGeometry, section_index: int, n_model: int, scale: float = 1.0) -> tuple[float, float, float]:
+    """Per-joint (k_x, k_y, k_twist) for a model with ``n_model`` joints in the section.
+
+    k = scale·n_model·K_seg·pitch/L per axis: the section's rigidities do not depend on
+    n_model. The twist value is ``inf`` for a universal central joint.
+    """
     section = geometry.sections[section_index]
-    return scale * n_model * section_bending_rigidity(geometry, section) / section.length
+    factor = scale * n_model * section.pitch / section.length
+    kx, ky, kz = segment_stiffness(geometry, section)
+    return factor * kx, factor * ky, factor * kz
+
+
+def joint_stiffness(geometry: ArmGeometry, section_index: int, n_model: int, scale: float = 1.0) -> float:
+    """Per-joint bending stiffness k = n_model·EI_sec/L (mean of x and y) for a model with ``n_model`` joints."""
+    kx, ky, _ = joint_stiffnesses(geometry, section_index, n_model, scale)
+    return 0.5 * (kx + ky)

@@ -53,8 +53,12 @@ PATCHABLE = (
     "model.stiffness_scale",
     "model.joint_damping",
     "arm.material.youngs_modulus",
+    "arm.material.poisson_ratio",
     "arm.sections.*.hinge_width",
     "arm.sections.*.hinge_thickness",
+    "arm.sections.*.leaf_radius",
+    "arm.sections.*.leaf_angles_deg",
+    "arm.sections.*.leaf_free_length",
 )
 UNUSED_BY_MODEL = ("control", "simulation", "layout")
 
@@ -101,33 +105,40 @@ def structure_key(config: ScenarioConfig, evaluation: Evaluation) -> str:
     return json.dumps({"config": kept, "evaluation": evaluation.to_dict()}, sort_keys=True)
 
 
-def _joint_dofs(model: mujoco.MjModel, config: ScenarioConfig, options: ModelOptions) -> list[list[int]]:
-    """Joint ids of each section, in disk order (``arm/joint_<i>`` or ``_x``/``_y``)."""
+def _joint_dofs(model: mujoco.MjModel, config: ScenarioConfig, options: ModelOptions) -> list[list[tuple[int, str]]]:
+    """(joint id, axis) of each section, in disk order (``arm/joint_<i>`` = "ball", or ``_x``/``_y``/``_z``)."""
     geom = model_geometry(config.arm, options)
+    suffixes = {"ball": [""], "hinge_pair": ["_x", "_y"], "hinge_triple": ["_x", "_y", "_z"]}[options.joint]
     out, disk = [], 1
     for section in geom.sections:
         ids = []
         for _ in range(section.n_segments):
-            names = [f"arm/joint_{disk}"] if options.joint == "ball" else [f"arm/joint_{disk}_x", f"arm/joint_{disk}_y"]
-            for name in names:
+            for suffix in suffixes:
+                name = f"arm/joint_{disk}{suffix}"
                 jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
                 if jid < 0:
                     raise KeyError(f"joint {name} not found")
-                ids.append(jid)
+                ids.append((jid, suffix.lstrip("_") or "ball"))
             disk += 1
         out.append(ids)
     return out
 
 
 def patch_model(shared: mujoco.MjModel, config: ScenarioConfig, evaluation: Evaluation) -> mujoco.MjModel:
-    """A copy of ``shared`` with this variant's flexure stiffness and joint damping."""
+    """A copy of ``shared`` with this variant's flexure stiffness (per axis) and joint damping."""
     options = model_options(config, evaluation)
     model = copy.copy(shared)
     links = section_links(config.arm, options)
     for ids, section_links_k in zip(_joint_dofs(model, config, options), links):
         link = section_links_k[0]
-        for jid in ids:
-            model.jnt_stiffness[jid] = link.bending_stiffness
+        per_axis = {
+            "ball": 0.5 * (link.bending_stiffness + link.stiffness_y),
+            "x": link.bending_stiffness,
+            "y": link.stiffness_y,
+            "z": link.twist_stiffness,
+        }
+        for jid, axis in ids:
+            model.jnt_stiffness[jid] = per_axis[axis]
             dof = model.jnt_dofadr[jid]
             ndof = 3 if model.jnt_type[jid] == mujoco.mjtJoint.mjJNT_BALL else 1
             model.dof_damping[dof : dof + ndof] = link.damping
