@@ -430,6 +430,13 @@ def plan_task(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig | None 
 def _sample(geometry, layout, cfg, timeline, qL0, qR0, waypoints) -> TaskPlan:
     """Lay the stages end to end and sample both arms at the plan rate."""
     dt = 1.0 / cfg.sample_rate_hz
+    # Refuse an absurd plan (a 1e-7 m/s cut: 10^8 samples, gigabytes) before allocating it.
+    from .limits import check_plan_samples
+
+    moves = [mv for _, stage_moves in timeline for mv in stage_moves]
+    n_total = 1 + sum(max(1, round(mv.duration / dt)) if mv.duration > 0 else 0 for mv in moves)
+    longest = max(moves, key=lambda mv: mv.duration)
+    check_plan_samples(n_total, n_total * dt, cfg.sample_rate_hz, f"{longest.segment} of the {longest.arm} arm, {longest.duration:.4g} s")
     last = {"left": qL0, "right": qR0}
     closed = False
     t0 = 0.0
