@@ -39,7 +39,9 @@ import numpy as np
 
 from ..geometry import ArmGeometry, SectionGeometry
 
-SHEAR_COEFFICIENT_RECT = 5.0 / 6.0  # Timoshenko shear coefficient of a rectangular section
+SHEAR_COEFFICIENT_RECT = (
+    5.0 / 6.0
+)  # Timoshenko shear coefficient of a rectangular section
 
 
 def strip_torsion_constant(width: float, thickness: float) -> float:
@@ -54,7 +56,9 @@ def leaf_lever_arms(section: SectionGeometry) -> np.ndarray:
     return section.leaf_radius * np.column_stack([np.cos(a), np.sin(a)])
 
 
-def flexure_segment_stiffness_matrix(geometry: ArmGeometry, section: SectionGeometry) -> np.ndarray:
+def flexure_segment_stiffness_matrix(
+    geometry: ArmGeometry, section: SectionGeometry
+) -> np.ndarray:
     """3×3 stiffness (N·m/rad) of one flexure segment about its joint centre, axes (x, y, z) of the disk.
 
     The twist entry is ``inf`` for a universal central joint.
@@ -66,7 +70,9 @@ def flexure_segment_stiffness_matrix(geometry: ArmGeometry, section: SectionGeom
     area = w * t
     i_hard, i_easy = t * w**3 / 12.0, w * t**3 / 12.0
     phi = 12.0 * e * i_hard / (SHEAR_COEFFICIENT_RECT * shear * area * g * g)
-    k_slide = 12.0 * e * i_hard / g**3 / (1.0 + phi)  # clamped-guided, hard axis, with shear
+    k_slide = (
+        12.0 * e * i_hard / g**3 / (1.0 + phi)
+    )  # clamped-guided, hard axis, with shear
     gj = shear * strip_torsion_constant(w, t)
     k = np.zeros((3, 3))
     for (x, y), alpha in zip(leaf_lever_arms(section), section.leaf_angles):
@@ -84,7 +90,9 @@ def flexure_segment_stiffness_matrix(geometry: ArmGeometry, section: SectionGeom
     return k
 
 
-def segment_stiffness(geometry: ArmGeometry, section: SectionGeometry) -> tuple[float, float, float]:
+def segment_stiffness(
+    geometry: ArmGeometry, section: SectionGeometry
+) -> tuple[float, float, float]:
     """(K_x, K_y, K_twist) in N·m/rad of one physical segment (the diagonal the model's joints get).
 
     Off-diagonal terms (zero for leaves 120° apart) are not represented by the joints.
@@ -92,7 +100,10 @@ def segment_stiffness(geometry: ArmGeometry, section: SectionGeometry) -> tuple[
     if geometry.backbone == "rod":
         rod = geometry.rod
         p = section.pitch
-        ei, gj = rod.youngs_modulus * rod.second_moment, rod.shear_modulus * rod.polar_moment
+        ei, gj = (
+            rod.youngs_modulus * rod.second_moment,
+            rod.shear_modulus * rod.polar_moment,
+        )
         return ei / p, ei / p, gj / p
     k = flexure_segment_stiffness_matrix(geometry, section)
     return float(k[0, 0]), float(k[1, 1]), float(k[2, 2])
@@ -109,7 +120,9 @@ def section_bending_rigidity(geometry: ArmGeometry, section: SectionGeometry) ->
     return segment_bending_stiffness(geometry, section) * section.pitch
 
 
-def joint_stiffnesses(geometry: ArmGeometry, section_index: int, n_model: int, scale: float = 1.0) -> tuple[float, float, float]:
+def joint_stiffnesses(
+    geometry: ArmGeometry, section_index: int, n_model: int, scale: float = 1.0
+) -> tuple[float, float, float]:
     """Per-joint (k_x, k_y, k_twist) for a model with ``n_model`` joints in the section.
 
     k = scale·n_model·K_seg·pitch/L per axis: the section's rigidities do not depend on
@@ -121,7 +134,9 @@ def joint_stiffnesses(geometry: ArmGeometry, section_index: int, n_model: int, s
     return factor * kx, factor * ky, factor * kz
 
 
-def joint_stiffness(geometry: ArmGeometry, section_index: int, n_model: int, scale: float = 1.0) -> float:
+def joint_stiffness(
+    geometry: ArmGeometry, section_index: int, n_model: int, scale: float = 1.0
+) -> float:
     """Per-joint bending stiffness k = n_model·EI_sec/L (mean of x and y) for a model with ``n_model`` joints."""
     kx, ky, _ = joint_stiffnesses(geometry, section_index, n_model, scale)
     return 0.5 * (kx + ky)
