@@ -428,6 +428,10 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--retry-failed", action="store_true", help="re-run variants recorded as failed")
     sweep.add_argument("--quiet", action="store_true", help="no progress bar or table")
     sweep.set_defaults(func=_cmd_sweep)
+
+    from .sysid.cli import add_commands as add_sysid_commands  # replay, synthesize, identify (docs/sysid.md)
+
+    add_sysid_commands(sub)
     return parser
 
 

@@ -1,0 +1,305 @@
+"""Identify plant parameters from a recording: least squares over simulated replays.
+
+Any numeric field of the scenario configuration can be fitted, named by its dotted path
+(``model.stiffness_scale``, ``model.rope_modulus``, ``model.grinder_mass``,
+``arm.sections.1.cable_angles_deg.2``, …), so a parameter a new plant model adds is
+fittable without code here. The residuals are the position errors in mm (mean offset
+removed when the recording says ``align = offset``) and, when the recording has
+orientations, the orientation errors in degrees times ``orientation_weight`` (mm/deg).
+
+The optimiser (scipy ``least_squares``, trust-region reflective, bounded) works on
+scaled variables x = (value − initial)/scale; its finite-difference Jacobian columns are
+replayed together in one batched ``mujoco.rollout`` call on ``nthread`` threads.
+Uncertainty: cov = s²(JᵀJ)⁻¹ with s² = 2·cost/(m − n); a parameter is reported as not
+identifiable when JᵀJ is rank-deficient in it (relative singular value < 1e-8), when its
+95 % interval is wider than its value, or when it is correlated with another above 0.999.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..configio import (
+    ConfigError,
+    atomic_write_text,
+    dumps_toml,
+    get_path,
+    replace_path,
+    to_dict,
+)
+from ..scenario.config import ScenarioConfig
+from .data import Recording
+from .replay import Prediction, plot_paths, position_errors, replay_metrics, simulate
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class FitParameter:
+    """One fitted path with its bounds."""
+
+    path: str
+    initial: float
+    low: float
+    high: float
+    integer: bool = False
+
+    @property
+    def scale(self) -> float:
+        return abs(self.initial) if self.initial != 0 else (self.high - self.low) / 10.0
+
+
+def parse_fit(spec: str, config: ScenarioConfig) -> FitParameter:
+    """``PATH`` or ``PATH=LOW:HIGH``; checks the path is numeric and both bounds are valid values."""
+    path, _, bounds = spec.partition("=")
+    path = path.strip()
+    where = f"--fit {path}"
+    try:
+        current = get_path(config, path)
+    except ConfigError as exc:
+        raise ConfigError(f"--fit {path}", f"unknown parameter path ({exc.field}: {exc.message})") from None
+    if isinstance(current, bool) or not isinstance(current, (int, float)):
+        raise ConfigError(where, f"not a numeric field (it is {type(current).__name__}); fit a number")
+    if isinstance(current, int):
+        raise ConfigError(where, "an integer field cannot be fitted by least squares")
+    initial = float(current)
+    if bounds:
+        try:
+            lo_s, hi_s = bounds.split(":")
+            low, high = float(lo_s), float(hi_s)
+        except ValueError:
+            raise ConfigError(where, f"bounds must be LOW:HIGH numbers (got {bounds!r})") from None
+        if not (math.isfinite(low) and math.isfinite(high) and low < high):
+            raise ConfigError(where, f"bounds must be finite with LOW < HIGH (got {bounds!r})")
+    elif initial > 0:
+        low, high = initial / 10.0, initial * 10.0
+    elif initial < 0:
+        low, high = initial * 10.0, initial / 10.0
+    else:
+        raise ConfigError(where, "the current value is 0: give bounds as PATH=LOW:HIGH")
+    if not low <= initial <= high:
+        raise ConfigError(where, f"the starting value {initial:g} lies outside the bounds [{low:g}, {high:g}]")
+    for b in (low, high):  # both bounds must be values the configuration accepts
+        _with(config, path, b, f"--fit {path}: bound {b:g}")
+    return FitParameter(path, initial, low, high)
+
+
+def _with(config: ScenarioConfig, path: str, value: float, where: str) -> ScenarioConfig:
+    try:
+        return replace_path(config, path, float(value))
+    except ConfigError as exc:
+        raise ConfigError(where, f"out of range ({exc.field}: {exc.message})") from None
+
+
+def configure(config: ScenarioConfig, params: list[FitParameter], values: Array) -> ScenarioConfig:
+    for p, v in zip(params, values):
+        config = _with(config, p.path, float(v), f"{p.path} = {v:g}")
+    return config
+
+
+def residuals(pred: Prediction, rec: Recording, orientation_weight: float = 1.0) -> Array:
+    """Position errors (mm) and orientation errors (deg·weight) at the measured rows, flat."""
+    err = position_errors(pred, rec) * 1000.0
+    parts = [err.ravel()]
+    if rec.quaternion is not None and orientation_weight > 0:
+        rows = rec.measured
+        qp, qm = pred.quaternion[rows], rec.quaternion[rows]
+        # rotation vector of qm⁻¹·qp, small-angle: 2·vec(qm* ⊗ qp) (sign-aligned)
+        w = np.sum(qp * qm, axis=1)
+        s = np.sign(w + 1e-300)[:, None]
+        vec = (qm[:, :1] * qp[:, 1:] - qp[:, :1] * qm[:, 1:] - np.cross(qm[:, 1:], qp[:, 1:])) * s
+        parts.append(np.degrees(2.0 * vec).ravel() * orientation_weight)
+    r = np.concatenate(parts)
+    return np.where(np.isfinite(r), r, 1e4)  # a diverged replay: large, finite residuals
+
+
+@dataclass
+class FitResult:
+    params: list[FitParameter]
+    values: Array
+    report: dict[str, Any]
+    config: ScenarioConfig
+    before: Prediction
+    after: Prediction
+
+
+def identify(config: ScenarioConfig, rec: Recording, params: list[FitParameter], nthread: int = 1,
+             orientation_weight: float = 1.0, max_nfev: int = 30, progress: bool = False,
+             diff_step: float = 1e-3) -> FitResult:
+    """Fit ``params`` to ``rec``; returns the values, the report dict and the fitted config."""
+    from scipy.optimize import least_squares
+
+    start = time.process_time()
+    x_scale = np.array([p.scale for p in params])
+    x0 = np.zeros(len(params))
+    v0 = np.array([p.initial for p in params])
+    lo = (np.array([p.low for p in params]) - v0) / x_scale
+    hi = (np.array([p.high for p in params]) - v0) / x_scale
+    cache: dict[bytes, Array] = {}
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=max_nfev * (len(params) + 1), desc="identify (replays)", unit="replay", leave=False)
+    count = [0]
+
+    def run(xs: list[Array]) -> list[Array]:
+        todo = [x for x in xs if x.tobytes() not in cache]
+        if todo:
+            cfgs = [configure(config, params, v0 + x * x_scale) for x in todo]
+            preds = simulate(cfgs, rec, nthread=nthread)
+            for x, p in zip(todo, preds):
+                cache[x.tobytes()] = residuals(p, rec, orientation_weight)
+            count[0] += len(todo)
+            if bar is not None:
+                bar.update(len(todo))
+        return [cache[x.tobytes()] for x in xs]
+
+    def fun(x: Array) -> Array:
+        return run([np.asarray(x, dtype=float)])[0]
+
+    def jac(x: Array) -> Array:
+        x = np.asarray(x, dtype=float)
+        f0 = fun(x)
+        steps = []
+        for i in range(len(x)):
+            h = diff_step * max(1.0, abs(x[i]))
+            xi = x.copy()
+            xi[i] = x[i] + h if x[i] + h <= hi[i] else x[i] - h
+            steps.append(xi)
+        cols = run(steps)
+        return np.stack([(c - f0) / (s[i] - x[i]) for i, (c, s) in enumerate(zip(cols, steps))], axis=1)
+
+    r0 = fun(x0)
+    sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=max_nfev,
+                        xtol=1e-8, ftol=1e-10, gtol=1e-10)
+    if bar is not None:
+        bar.close()
+    values = v0 + sol.x * x_scale
+    fitted = configure(config, params, values)
+    before, after = simulate([config, fitted], rec, nthread=nthread)
+    J = jac(sol.x) / x_scale[None, :]  # d residual / d value
+    r1 = residuals(after, rec, orientation_weight)
+    report = _report(params, v0, values, r0, r1, J, before, after, rec)
+    report.update({"nfev": int(sol.nfev), "replays": count[0], "status": sol.message, "cpu_s": time.process_time() - start,
+                   "orientation_weight_mm_per_deg": orientation_weight})
+    return FitResult(params, values, report, fitted, before, after)
+
+
+def _report(params: list[FitParameter], v0: Array, values: Array, r0: Array, r1: Array, J: Array,
+            before: Prediction, after: Prediction, rec: Recording) -> dict[str, Any]:
+    m, n = J.shape
+    dof = max(1, m - n)
+    s2 = float(r1 @ r1) / dof
+    scale = np.linalg.norm(J, axis=0)
+    scale[scale == 0] = 1.0
+    Jn = J / scale
+    _, sv, vt = np.linalg.svd(Jn, full_matrices=False)
+    rel = sv / sv[0] if sv.size and sv[0] > 0 else np.zeros_like(sv)
+    weak_dirs = vt[rel < 1e-8]
+    weak = rel < 1e-8
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = np.where(weak, 0.0, 1.0 / sv**2)  # pseudo-inverse on the determined subspace
+        cov_n = (vt.T * inv) @ vt
+        cov = cov_n / np.outer(scale, scale) * s2
+    std = np.sqrt(np.abs(np.diag(cov)))
+    if weak.any():  # a parameter in a null direction has no bound on its error
+        std[np.max(np.abs(vt[weak]), axis=0) > 0.1] = np.inf
+    with np.errstate(divide="ignore", invalid="ignore"):
+        corr = cov / np.outer(std, std)
+    per: dict[str, Any] = {}
+    for i, p in enumerate(params):
+        reasons = []
+        if weak_dirs.size and np.max(np.abs(weak_dirs[:, i])) > 0.1:
+            reasons.append("the data do not change with it (rank-deficient Jacobian)")
+        if not np.isfinite(std[i]) or 1.96 * std[i] > abs(values[i]):
+            reasons.append("its 95 % interval is wider than its value")
+        others = [params[j].path for j in range(n) if j != i and np.isfinite(corr[i, j]) and abs(corr[i, j]) > 0.999]
+        if others:
+            reasons.append(f"correlated above 0.999 with {', '.join(others)}")
+        at_bound = bool(np.isclose(values[i], p.low, rtol=1e-6) or np.isclose(values[i], p.high, rtol=1e-6))
+        per[p.path] = {
+            "initial": float(v0[i]), "value": float(values[i]), "std_error": float(std[i]),
+            "ci95": [float(values[i] - 1.96 * std[i]), float(values[i] + 1.96 * std[i])],
+            "bounds": [p.low, p.high], "at_bound": at_bound,
+            "identifiable": not reasons, "why_not": "; ".join(reasons),
+        }
+    mb, ma = replay_metrics(before, rec), replay_metrics(after, rec)
+    npos = 3 * int(rec.measured.sum())
+
+    def rmse(r: Array) -> float:
+        e = r[:npos].reshape(-1, 3)
+        return float(np.sqrt(np.mean(np.sum(e * e, axis=1))))
+
+    return {
+        "parameters": {p.path: float(v) for p, v in zip(params, values)},
+        "initial": {p.path: float(v) for p, v in zip(params, v0)},
+        "rmse_before_mm": rmse(r0),
+        "rmse_after_mm": rmse(r1),
+        "metric": "pointwise Euclidean position RMSE" + (" after removing the mean offset" if rec.info.align == "offset" else ""),
+        "details": per,
+        "correlation": {p.path: [float(c) for c in corr[i]] for i, p in enumerate(params)},
+        "residual_sigma": math.sqrt(s2),
+        "unidentifiable": [p for p, d in per.items() if not d["identifiable"]],
+        "replay_before": mb,
+        "replay_after": ma,
+        "samples": int(rec.measured.sum()),
+    }
+
+
+def write_identify_folder(out: str | os.PathLike[str], result: FitResult, rec: Recording, base_toml: str | None) -> None:
+    """DIR/identified.toml, DIR/report.json, DIR/plots/{fit_paths,residuals}.png."""
+    out = Path(out)
+    (out / "plots").mkdir(parents=True, exist_ok=True)
+    lines = ["# Identified by `continuum-sim identify` (fitted to the recording below; see report.json).",
+             f"# recording: {rec.info.source or '(unnamed)'}; {int(rec.measured.sum())} measured samples",
+             *(f"# fitted {p}: {v!r}" for p, v in result.report["parameters"].items()),
+             f"# base configuration: {base_toml or 'shipped defaults'}", ""]
+    atomic_write_text(out / "identified.toml", "\n".join(lines) + dumps_toml(to_dict(result.config)))
+    atomic_write_text(out / "report.json", json.dumps(result.report, indent=2))
+    r = result.report
+    plot_paths(rec, {"before fit": result.before, "after fit": result.after}, out / "plots" / "fit_paths.png",
+               f"fit: RMSE {r['rmse_before_mm']:.3g} -> {r['rmse_after_mm']:.3g} mm")
+    _plot_residuals(rec, result, out / "plots" / "residuals.png")
+
+
+def _plot_residuals(rec: Recording, result: FitResult, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..configio import atomic_write_figure
+
+    rows = rec.measured
+    t = rec.time[rows] - rec.time[0]
+    e = position_errors(result.after, rec) * 1000.0
+    fig, axes = plt.subplots(2, 1, figsize=(10, 6.5))
+    for j, c in enumerate("xyz"):
+        axes[0].plot(t, e[:, j], lw=0.7, label=c)
+    axes[0].set_ylabel("residual after fit [mm]")
+    axes[0].set_xlabel("time [s]")
+    axes[0].legend(fontsize=8)
+    axes[0].grid(alpha=0.3)
+    axes[1].hist(e.ravel(), bins=60, color="tab:blue")
+    axes[1].set_xlabel("position residual per axis [mm]")
+    axes[1].set_ylabel("count")
+    fig.suptitle(f"residuals after fit (sigma {np.std(e):.3g} mm per axis)")
+    atomic_write_figure(fig, path)
+
+
+def default_fit_max_nfev(n_params: int) -> int:
+    return 20 + 5 * n_params
+
+
+
