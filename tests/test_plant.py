@@ -29,7 +29,7 @@ def test_each_cable_stretches_by_tension_times_l_over_ea():
     the settled tension over the measured stretch (tendon length − motor position) is
     E·π d²/4 / (lead + in-arm length) within 1 %, and distal cables are softer."""
     geometry = ArmGeometry()
-    options = ModelOptions(joint="hinge_pair", timestep=0.002)
+    options = ModelOptions(joint="hinge_pair", timestep=0.002, cable_model="elastic")
     model = _compile(build_single_arm_model(geometry, options, gravity=False))
     data = mujoco.MjData(model)
     cables = np.arange(model.nu)

@@ -32,7 +32,7 @@ class ModelOptions:
     # length: lead + in-arm path), pulled by a motor whose position (a PI encoder loop
     # with speed and force limits, continuum_sim.model.motors) is the actuator's control;
     # "lumped": the legacy single P-only servo of gain cable_kp standing for motor and cable.
-    cable_model: Literal["elastic", "lumped"] = "elastic"
+    cable_model: Literal["elastic", "lumped"] = "lumped"  # elastic becomes the default once the runner drives the motors
     rope_diameter: float = 1.0e-3  # m, nominal diameter of the steel wire rope (*assumed*, docs/plant.md)
     rope_modulus: float = 73.2e9  # Pa, effective modulus on the nominal area π d²/4: 7x7 302/304 stainless (Loos G factor)
     cable_lead_length: float = 0.25  # m, rope from the spool through the pack's guides to the arm's base plate (*assumed*)
