@@ -1,4 +1,4 @@
-"""``continuum-sim`` command line. Bad input → one line on stderr and exit code 2."""
+"""``continuum-sim`` command line. Bad input → one line on stderr and exit code 2 (docs/errors.md)."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 import numpy as np
 
@@ -15,6 +16,9 @@ from .geometry import ArmGeometry
 
 class UsageError(Exception):
     """A command-line value is invalid (message names the option)."""
+
+
+MAX_TARGET_M = 100.0  # |coordinate| of an ik target: the arm reaches 0.54 m; beyond this only overflow lies
 
 
 def _load_geometry(path: str | None) -> ArmGeometry:
@@ -27,7 +31,7 @@ def _cmd_fk(args: argparse.Namespace) -> int:
     geometry = _load_geometry(args.config)
     q = np.array(args.q, dtype=float)
     if not np.all(np.isfinite(q)):
-        raise UsageError("q: all six values must be finite numbers")
+        raise UsageError("q: all values must be finite numbers")
     if args.deg:
         q = np.radians(q)
     if q.shape != (2 * geometry.n_sections,):
@@ -63,21 +67,38 @@ def _cmd_fk(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
+    from .configio import check_output_dir
+    from .limits import check_cameras, check_scenario
+    from .runfolder import discard_if_empty, finish, mark_running, prepare_run_folder
     from .scenario.config import ScenarioConfig, merged
 
     config = ScenarioConfig.default() if args.config is None else ScenarioConfig.from_toml(args.config)
     if args.control is not None:
         config = merged(config, {"control": {"mode": args.control}})
-    out = Path(args.out)
+    # Everything that can be refused is refused before the folder is touched.
+    out = check_output_dir(args.out, create=False)
+    check_scenario(config)
+    if args.video:
+        check_cameras(config)
+    prepare_run_folder(out, overwrite=args.overwrite)
+    out = check_output_dir(args.out)
+    mark_running(out)
     from .scenario.runner import SimulationDiverged, run_scenario
 
     try:
         metrics = run_scenario(config, out, video=args.video, progress=not args.quiet)
     except SimulationDiverged as exc:
+        finish(out, "diverged", str(exc))
         print(f"continuum-sim run: error: {exc}", file=sys.stderr)
-        return 3
+        return EXIT_DIVERGED
+    except BaseException as exc:  # Ctrl-C, SIGTERM, disk full, a refused plan, a bug: the folder says so
+        if isinstance(exc, (ConfigError, UsageError)) and discard_if_empty(out):
+            raise  # refused before anything was written (e.g. an unreachable plan): no run folder is left
+        interrupted = isinstance(exc, (KeyboardInterrupt, _Terminated))
+        finish(out, "interrupted" if interrupted else "failed",
+               _clip(f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__, 200))
+        raise
+    finish(out, "complete")
     summary = {
         "sample_detached": metrics["sample_detached"],
         "sample_held_at_end": metrics["sample_held_at_end"],
@@ -115,8 +136,10 @@ def _cmd_view(args: argparse.Namespace) -> int:
 
 
 def _cmd_build_model(args: argparse.Namespace) -> int:
+    from .configio import check_output_dir
     from .model.export import export_models
 
+    check_output_dir(args.out)
     if args.config is None:
         paths = export_models(args.out)
     else:
@@ -144,13 +167,14 @@ def _cmd_build_model(args: argparse.Namespace) -> int:
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from .configio import check_output_dir
     from .sweep import load_spec, run_sweep
     from .sweep.report import format_table
 
     if args.workers is not None and args.workers < 1:
         raise UsageError(f"--workers: must be >= 1 (got {args.workers})")
-    spec = load_spec(args.spec)  # every check happens here, before any work
-    out = Path(args.out) if args.out else Path("sweeps") / Path(args.spec).stem
+    out = check_output_dir(args.out if args.out is not None else Path("sweeps") / Path(args.spec).stem, create=False)
+    spec = load_spec(args.spec, progress=not args.quiet)  # every check happens here, before any work
     try:
         result = run_sweep(
             spec,
@@ -194,17 +218,28 @@ def _target_from_args(args: argparse.Namespace) -> np.ndarray:
     if args.matrix is not None:
         try:
             T = np.array(json.loads(args.matrix), dtype=float)
-        except (ValueError, TypeError) as exc:
-            raise UsageError(f"--matrix: must be a JSON 4x4 list of numbers ({exc})") from None
+        except (ValueError, TypeError, RecursionError) as exc:
+            raise UsageError(f"--matrix: must be a JSON 4x4 list of numbers ({_clip(str(exc), 80)})") from None
+        if T.shape != (4, 4):
+            raise UsageError(f"--matrix: must be a 4x4 list of numbers (got shape {T.shape})")
+        if not np.all(np.isfinite(T)):
+            bad = T[~np.isfinite(T)][0]
+            raise UsageError(f"--matrix: entries must be finite numbers (got {'NaN' if np.isnan(bad) else bad})")
+        if np.abs(T[:3, 3]).max() > MAX_TARGET_M:
+            raise UsageError(f"--matrix: position entries must satisfy |x| <= {MAX_TARGET_M:g} m")
         return T
     if args.position is None:
         raise UsageError("give the target as --position X Y Z [--rotvec RX RY RZ | --zaxis ZX ZY ZZ] or --matrix JSON")
+    if max(abs(v) for v in args.position) > MAX_TARGET_M:
+        raise UsageError(f"--position: each coordinate must satisfy |x| <= {MAX_TARGET_M:g} m (got {args.position})")
     T = np.eye(4)
     T[:3, 3] = args.position
     if args.rotvec is not None and args.zaxis is not None:
         raise UsageError("--rotvec and --zaxis are exclusive")
     if args.rotvec is not None:
         rv = np.array(args.rotvec, dtype=float)
+        if np.abs(rv).max() > 1e4:
+            raise UsageError("--rotvec: each component must satisfy |r| <= 10000 (rad, or deg with --deg)")
         T[:3, :3] = kin.exp_so3(np.radians(rv) if args.deg else rv)
     elif args.zaxis is not None:
         z = np.array(args.zaxis, dtype=float)
@@ -240,11 +275,19 @@ def _cmd_ik(args: argparse.Namespace) -> int:
             raise UsageError(f"--tool: must be none, grinder, gripper or a length in metres (got {tool!r})") from None
     q0 = None
     if args.q0 is not None:
+        if len(args.q0) != 2 * geometry.n_sections:
+            raise UsageError(f"--q0: expected {2 * geometry.n_sections} values (θ, φ per section), got {len(args.q0)}")
         q0 = np.radians(args.q0) if args.deg else np.array(args.q0, dtype=float)
+    for name, value, low, high in (("--k1", args.k1, 0.0, 1e6), ("--k2", args.k2, 0.0, 1e6), ("--tol", args.tol, 0.0, 1.0)):
+        if not low < value <= high:
+            raise UsageError(f"{name}: must satisfy {low:g} < {name.lstrip('-')} <= {high:g} (got {value!r})")
     options = IKOptions(position_weight=args.k1, orientation_weight=args.k2, position_tolerance=args.tol,
                         orientation_tolerance=args.tol)
     try:
-        res = solve_ik(geometry, target, args.orientation, args.phase, q0, tool=tool, base=base, options=options)
+        with np.errstate(all="ignore"):  # overflow inside the solver is reported below, once
+            res = solve_ik(geometry, target, args.orientation, args.phase, q0, tool=tool, base=base, options=options)
+    except (OverflowError, FloatingPointError) as exc:
+        raise UsageError(f"numeric overflow in the solver ({exc}); check the target and --k1/--k2") from None
     except ValueError as exc:
         if isinstance(exc, ConfigError):
             raise
@@ -261,7 +304,7 @@ def _cmd_ik(args: argparse.Namespace) -> int:
 def _cmd_plan(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from .configio import atomic_write_text, save_toml
+    from .configio import atomic_write_text, check_output_dir, save_toml
     from .plotting_ik import plot_plan_overview, plot_plan_timeseries, plot_shape_parameters
     from .toolpath import arm_clearance, plan_task, save_plan, solve_planar_demo
 
@@ -272,9 +315,9 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         import dataclasses
 
         cfg = dataclasses.replace(cfg, progress=True)
+    out = check_output_dir(args.out, create=False)
     plan = plan_task(geometry, layout, cfg)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    check_output_dir(out)
     save_plan(plan, out / "plan.npz")
     save_toml(layout, out / "layout.toml")
     save_toml(cfg, out / "plan_config.toml")
@@ -311,13 +354,14 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 def _cmd_workspace(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from .configio import atomic_write_text
+    from .configio import atomic_write_text, check_output_dir
     from .toolpath import gripper_poses, grinder_poses
     from .workspace import WorkspaceConfig, check_poses, compute_workspace, plot_workspace
 
     geometry = _load_geometry(args.config)
     layout = _load_layout(args.layout)
     cfg = _load_plan_config(args.plan)
+    out = check_output_dir(args.out, create=False)
     ws_cfg = WorkspaceConfig(samples=args.samples, voxel=args.voxel, point=args.point, seed=args.seed)
     ws = compute_workspace(geometry, layout, ws_cfg, progress=args.progress)
     gp, hp = grinder_poses(layout, cfg), gripper_poses(layout, cfg)
@@ -332,8 +376,7 @@ def _cmd_workspace(args: argparse.Namespace) -> int:
     check_poses(geometry, layout, "left", list(gp.items()), "axis", cfg.grinder_phase, cfg.ik, ws)
     check_poses(geometry, layout, "right", list(hp.items()), "full", cfg.gripper_phase, cfg.ik, ws)
     summary["task_poses_reachable"] = True
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    check_output_dir(out)
     points = {"grinder key poses": np.array([p[:3, 3] for p in gp.values()]),
               "gripper key poses": np.array([p[:3, 3] for p in hp.values()])}
     plot_workspace(ws, out / "workspace.png", layout, points, section_y=args.section_y)
@@ -343,11 +386,13 @@ def _cmd_workspace(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="continuum-sim", description=__doc__)
+    parser = _Parser(prog="continuum-sim", description=__doc__)
+    parser.add_argument("--debug", action="store_true", help="show tracebacks (also accepted after the command)")
     sub = parser.add_subparsers(dest="command", required=True)
 
     fk = sub.add_parser("fk", help="tip pose and cable lengths of one configuration")
-    fk.add_argument("q", nargs=6, type=float, metavar="Q", help="θ0 φ0 θ1 φ1 θ2 φ2 (radians unless --deg)")
+    fk.add_argument("q", nargs="+", type=float, metavar="Q",
+                    help="θ, φ per section: θ0 φ0 θ1 φ1 θ2 φ2 for the 3-section arm (radians unless --deg)")
     fk.add_argument("--deg", action="store_true", help="angles are in degrees")
     fk.add_argument("--config", help="arm geometry TOML file")
     fk.add_argument("--json", action="store_true", help="print JSON")
@@ -362,7 +407,7 @@ def build_parser() -> argparse.ArgumentParser:
     ik.add_argument("--phase", choices=["free", "planar"], default="free")
     ik.add_argument("--tool", default="auto", help="none, grinder, gripper or a length in m (default: the arm's tool with --arm, else none)")
     ik.add_argument("--arm", choices=["left", "right"], help="target in the world frame of this arm's task mount")
-    ik.add_argument("--q0", nargs=6, type=float, metavar="Q", help="warm start θ0 φ0 θ1 φ1 θ2 φ2")
+    ik.add_argument("--q0", nargs="+", type=float, metavar="Q", help="warm start θ, φ per section (θ0 φ0 θ1 φ1 θ2 φ2)")
     ik.add_argument("--deg", action="store_true", help="--rotvec and --q0 in degrees")
     ik.add_argument("--k1", type=float, default=10.0, help="position weight, 1/m (paper eq. 8)")
     ik.add_argument("--k2", type=float, default=1.0, help="orientation weight, 1/rad")
@@ -399,6 +444,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--video", action="store_true", help="render an MP4 off-screen (EGL)")
     run.add_argument("--control", choices=["open", "closed"], help="open = the paper's method, closed = ours (default: config)")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument("--overwrite", action="store_true", help="replace the run already in --out (cleared first)")
     run.set_defaults(func=_cmd_run)
 
     view = sub.add_parser("view", help="open the scene in MuJoCo's interactive viewer (needs a display)")
@@ -435,14 +481,185 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+# ------------------------------------------------------------------ error boundary
+# Exit codes (docs/errors.md). Every expected failure ends with ONE line on stderr.
+EXIT_OK = 0
+EXIT_NEGATIVE = 1  # the command ran but the answer is no (ik unreachable, no display for view)
+EXIT_USAGE = 2  # bad input: argument, configuration, spec, path, environment, unreachable cluster
+EXIT_DIVERGED = 3  # the simulation diverged (partial results kept, marked diverged)
+EXIT_RESOURCES = 4  # the machine ran out of something while working (disk full, memory)
+EXIT_INTERNAL = 70  # a bug: an exception nobody expected (rerun with --debug for the traceback)
+EXIT_INTERRUPTED = 130  # Ctrl-C (SIGINT)
+EXIT_BROKEN_PIPE = 141  # stdout closed by the reader (`continuum-sim ik ... | head`), silently
+EXIT_TERMINATED = 143  # SIGTERM
+MAX_LINE = 400  # characters of the one error line
+
+
+class _Terminated(BaseException):
+    """SIGTERM, raised in the main thread so cleanup (finally blocks) runs as for Ctrl-C."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors; subcommand parsers inherit it (argparse uses type(parent))."""
+
+    def error(self, message: str) -> NoReturn:  # type: ignore[override]
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {_clip(message)} (see {self.prog} --help)\n")
+
+
+def _clip(text: str, limit: int = MAX_LINE) -> str:
+    """One line, at most ``limit`` characters."""
+    line = " ".join(str(text).split())
+    return line if len(line) <= limit else f"{line[: limit - 1]}…"
+
+
+def _check_finite_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Every float option of the chosen command must be finite (argparse's float() accepts nan and inf)."""
+    import math
+
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))  # noqa: SLF001
+    command = sub.choices.get(args.command)
+    if command is None:
+        return
+    for action in command._actions:  # noqa: SLF001
+        if action.type is not float:
+            continue
+        value = getattr(args, action.dest, None)
+        values = value if isinstance(value, (list, tuple)) else [value]
+        for v in values:
+            if isinstance(v, float) and not math.isfinite(v):
+                name = action.option_strings[0] if action.option_strings else action.metavar or action.dest
+                raise UsageError(f"{name}: must be a finite number (got {v!r})")
+
+
+def _check_environment() -> None:
+    """Environment variables read later, deep inside an import: check them before any work."""
+    import os
+
+    from .glbackend import VALID_BACKENDS
+
+    requested = os.environ.get("MUJOCO_GL", "").strip().lower()
+    if requested and requested not in VALID_BACKENDS:
+        raise UsageError(f"MUJOCO_GL: must be one of {', '.join(VALID_BACKENDS)} or unset (got {requested[:40]!r})")
+
+
+def _is_divergence(exc: BaseException) -> bool:
+    return any(cls.__name__ == "SimulationDiverged" for cls in type(exc).__mro__)
+
+
+def _os_error_line(exc: OSError) -> tuple[int, str]:
+    import errno
+
+    where = exc.filename if exc.filename is not None else ""
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    text = f"{where}: {reason}" if where else reason
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.ENOMEM):
+        return EXIT_RESOURCES, f"could not write results: {text}"
+    return EXIT_USAGE, text
+
+
+def _silence_stdout() -> None:
+    """After a broken pipe: point stdout at /dev/null so the interpreter's final flush is quiet."""
+    import os
+
     try:
-        return int(args.func(args) or 0)
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
+class _WarningSummary:
+    """Numeric warnings (overflow in ik, ...) as one line at the end instead of a page each."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.first: str | None = None
+
+    def show(self, message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ARG002
+        self.count += 1
+        if self.first is None:
+            self.first = f"{category.__name__}: {message}"
+
+    def line(self, prog: str) -> str | None:
+        if not self.count:
+            return None
+        more = f" ({self.count} warnings in all; --debug shows each)" if self.count > 1 else ""
+        return f"{prog}: warning: {_clip(self.first or '', 200)}{more}"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command; returns the exit code (docs/errors.md). ``--debug`` anywhere shows tracebacks."""
+    import os
+    import signal
+    import threading
+    import traceback
+    import warnings
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv or os.environ.get("CONTINUUM_SIM_DEBUG", "") not in ("", "0")
+    argv = [a for a in argv if a != "--debug"]
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help (0) or a bad argument (2, one line already printed)
+        return exc.code if isinstance(exc.code, int) else EXIT_USAGE
+    prog = f"continuum-sim {args.command}"
+
+    def fail(code: int, message: str) -> int:
+        if debug:
+            traceback.print_exc()
+        try:
+            print(f"{prog}: {_clip(message)}", file=sys.stderr)
+        except (OSError, ValueError):
+            pass
+        return code
+
+    def on_sigterm(signum, frame) -> None:  # noqa: ARG001
+        raise _Terminated
+
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, on_sigterm) if in_main_thread else None
+    summary = _WarningSummary()
+    old_limit = sys.getrecursionlimit()
+    # MuJoCo's model builder (dm_control) recurses once per nested body: 200 segments per
+    # section (the documented maximum) nest ~1,200 bodies; Python 3.11+ frames do not use the C stack.
+    sys.setrecursionlimit(max(old_limit, 20_000))
+    try:
+        with warnings.catch_warnings():
+            if not debug:
+                warnings.showwarning = summary.show
+            _check_environment()
+            _check_finite_args(parser, args)
+            code = int(args.func(args) or 0)
+            sys.stdout.flush()
+        note = summary.line(prog)
+        if note:
+            print(note, file=sys.stderr)
+        return code
+    except BrokenPipeError:
+        _silence_stdout()
+        return EXIT_BROKEN_PIPE
+    except KeyboardInterrupt:
+        return fail(EXIT_INTERRUPTED, "interrupted (Ctrl-C); partial results are marked interrupted")
+    except _Terminated:
+        return fail(EXIT_TERMINATED, "terminated (SIGTERM); partial results are marked interrupted")
     except (ConfigError, UsageError) as exc:
-        print(f"continuum-sim {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return fail(EXIT_USAGE, f"error: {exc}")
+    except MemoryError:
+        return fail(EXIT_RESOURCES, "error: out of memory; reduce the sizes this command was asked for")
+    except OSError as exc:
+        code, text = _os_error_line(exc)
+        return fail(code, f"error: {text}")
+    except RecursionError:
+        return fail(EXIT_USAGE, "error: input nested too deeply (recursion limit reached)")
+    except Exception as exc:  # noqa: BLE001 - the boundary: one line, never a traceback unless --debug
+        if _is_divergence(exc):
+            return fail(EXIT_DIVERGED, f"error: {exc}")
+        return fail(EXIT_INTERNAL, f"internal error: {type(exc).__name__}: {exc} (rerun with --debug for the traceback)")
+    finally:
+        sys.setrecursionlimit(old_limit)
+        if in_main_thread and previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

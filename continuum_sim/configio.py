@@ -206,6 +206,12 @@ def from_dict(cls: type[T], data: dict[str, Any], prefix: str = "") -> T:
         if name in data:
             where = f"{prefix}.{name}" if prefix else name
             kwargs[name] = _convert(hints[name], data[name], where)
+    required = [f.name for f in dataclasses.fields(cls)
+                if f.init and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
+    for name in required:
+        if name not in data:
+            where = f"{prefix}.{name}" if prefix else name
+            raise ConfigError(where, f"missing; required keys here are {', '.join(required)}")
     try:
         return cls(**kwargs)
     except ConfigError as exc:

@@ -9,8 +9,13 @@ never needs the sweep folder. No backend decides what a variant computes: that i
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
 import os
+import signal
+import socket
+import sys
+import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -42,12 +47,48 @@ def payload(spec: SweepSpec, variant: Variant, run_root: str | None) -> dict[str
 
 
 # ------------------------------------------------------------------ local processes
+DRIVER_POLL_S = 1.0  # a worker whose driver is gone exits within about this long
+
+
+def _die_with_parent() -> None:
+    """Linux: the kernel sends SIGKILL to this process when its parent (the forkserver) exits."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):
+        pass
+
+
+def _watch_driver(driver_pid: int, parent_pid: int) -> None:
+    """Fallback on any OS: exit once the driver process is gone or this worker was re-parented."""
+    while True:
+        time.sleep(DRIVER_POLL_S)
+        try:
+            os.kill(driver_pid, 0)
+        except ProcessLookupError:
+            os._exit(1)
+        except PermissionError:
+            pass
+        if os.getppid() != parent_pid:
+            os._exit(1)
+
+
+def worker_init(driver_pid: int) -> None:
+    """Pool initializer: never outlive the driver (a SIGKILLed sweep leaves no orphan workers), then warm up."""
+    _die_with_parent()
+    threading.Thread(target=_watch_driver, args=(driver_pid, os.getppid()), daemon=True, name="watch-driver").start()
+    sys.setrecursionlimit(max(sys.getrecursionlimit(), 20_000))  # deep models (200 segments per section)
+    warm_up()
+
+
 def _executor(workers: int) -> ProcessPoolExecutor:
     # forkserver: workers fork from a server that has already imported MuJoCo and
     # dm_control, so a worker starts in milliseconds and never inherits driver threads.
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload(["continuum_sim.sweep.worker", "continuum_sim.sweep.static"])
-    return ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=warm_up)
+    return ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=worker_init, initargs=(os.getpid(),))
 
 
 def run_processes(spec: SweepSpec, variants: Sequence[Variant], workers: int, run_root: str | None, on_result: OnResult) -> None:
@@ -113,6 +154,32 @@ def run_shared(spec: SweepSpec, variants: Sequence[Variant], workers: int, on_re
 
 
 # --------------------------------------------------------------------------- Ray
+CONNECT_TIMEOUT_S = 10.0  # how long the TCP probe of a Ray address may take
+
+
+def probe_address(address: str, timeout: float | None = None) -> None:
+    """Refuse a Ray address whose host:port does not accept a TCP connection within ``timeout``.
+
+    ``auto`` / ``local`` (Ray's own discovery) pass through; ``ray://host:port`` and
+    ``host:port`` are probed.
+    """
+    timeout = CONNECT_TIMEOUT_S if timeout is None else timeout
+    if address in ("auto", "local"):
+        return
+    target = address.removeprefix("ray://")
+    host, sep, port_text = target.rpartition(":")
+    if not sep or not host or not port_text.isdigit() or not 0 < int(port_text) < 65536:
+        raise ConfigError("--address", f"must be host:port, ray://host:port, auto or local (got {address[:80]!r})")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port_text)), timeout=timeout):
+            pass
+    except OSError as exc:
+        reason = "timed out" if isinstance(exc, TimeoutError) else (exc.strerror or type(exc).__name__)
+        raise ConfigError(
+            "--address", f"cannot reach a Ray cluster at {address[:80]!r} ({reason} after at most {timeout:g} s)"
+        ) from None
+
+
 def run_ray(
     spec: SweepSpec,
     variants: Sequence[Variant],
@@ -138,6 +205,7 @@ def run_ray(
     if address is None:
         init_kwargs.update(num_cpus=workers or default_workers(), include_dashboard=False)
     else:
+        probe_address(address)  # an unreachable cluster is one line in seconds, not a hang
         init_kwargs["address"] = address
     try:
         ray.init(**init_kwargs)

@@ -17,7 +17,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from ..configio import ConfigError, from_dict, require_range, to_dict
+from ..configio import ConfigError, from_dict, require_range, shorten, to_dict
 
 # Metric names of the static evaluations, in table order.
 GRAVITY_SAG_METRICS = (
@@ -159,8 +159,10 @@ class Stage(Evaluation):
     keep_runs: bool = False
 
     def __post_init__(self) -> None:
-        if not isinstance(self.stage, str) or not self.stage:
-            raise ConfigError("stage", f"must name a stage of the task, e.g. 'milling' (got {self.stage!r})")
+        from ..toolpath import STAGE_NAMES
+
+        if not isinstance(self.stage, str) or self.stage not in STAGE_NAMES:
+            raise ConfigError("stage", f"must be one of {', '.join(STAGE_NAMES)} (got {shorten(self.stage)})")
 
 
 KINDS: dict[str, type[Evaluation]] = {c.kind: c for c in (GravitySag, TipDeflection, Scenario, Stage)}

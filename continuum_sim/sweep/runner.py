@@ -75,6 +75,8 @@ def run_sweep(
         raise ConfigError("--address", "only applies to --backend ray")
     preflight(spec, backend, workers)
     mode = choose_mode(spec, backend, batch)
+    if backend == "ray" and address is not None:
+        backends.probe_address(address)  # before the folder is touched
     store = ResultStore(out)
     with store.lock():
         store.prepare(spec)
