@@ -139,13 +139,17 @@ def _cmd_build_model(args: argparse.Namespace) -> int:
     from .configio import check_output_dir
     from .model.export import export_models
 
-    check_output_dir(args.out)
+    check_output_dir(args.out, create=False)
     if args.config is None:
+        check_output_dir(args.out)
         paths = export_models(args.out)
     else:
+        from .limits import check_model_geometry
         from .scenario.config import ScenarioConfig
 
         config = ScenarioConfig.from_toml(args.config)
+        check_model_geometry(config)
+        check_output_dir(args.out)
         paths = export_models(args.out, config.arm, config.layout, config.model, config.scene)
     if not args.models_only:
         from pathlib import Path
@@ -622,8 +626,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     summary = _WarningSummary()
     old_limit = sys.getrecursionlimit()
     # MuJoCo's model builder (dm_control) recurses once per nested body: 200 segments per
-    # section (the documented maximum) nest ~1,200 bodies; Python 3.11+ frames do not use the C stack.
-    sys.setrecursionlimit(max(old_limit, 20_000))
+    # section (the documented maximum) nest 600+ bodies; Python 3.11+ frames do not use the C stack.
+    sys.setrecursionlimit(max(old_limit, 10_000))
     try:
         with warnings.catch_warnings():
             if not debug:
@@ -655,7 +659,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as exc:  # noqa: BLE001 - the boundary: one line, never a traceback unless --debug
         if _is_divergence(exc):
             return fail(EXIT_DIVERGED, f"error: {exc}")
-        return fail(EXIT_INTERNAL, f"internal error: {type(exc).__name__}: {exc} (rerun with --debug for the traceback)")
+        return fail(EXIT_INTERNAL, f"internal error: {type(exc).__name__}: {_clip(str(exc), 250)} (rerun with --debug for the traceback)")
     finally:
         sys.setrecursionlimit(old_limit)
         if in_main_thread and previous is not None:

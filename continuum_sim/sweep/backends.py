@@ -79,7 +79,7 @@ def worker_init(driver_pid: int) -> None:
     """Pool initializer: never outlive the driver (a SIGKILLed sweep leaves no orphan workers), then warm up."""
     _die_with_parent()
     threading.Thread(target=_watch_driver, args=(driver_pid, os.getppid()), daemon=True, name="watch-driver").start()
-    sys.setrecursionlimit(max(sys.getrecursionlimit(), 20_000))  # deep models (200 segments per section)
+    sys.setrecursionlimit(max(sys.getrecursionlimit(), 10_000))  # deep models (200 segments per section)
     warm_up()
 
 
