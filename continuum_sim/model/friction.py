@@ -1,0 +1,704 @@
+"""Cable friction in the disk holes: capstan tension loss with stick/slip (issue 13).
+
+Each cable of the generated model is ONE MuJoCo spatial tendon through a site at its hole
+on every disk, so MuJoCo transmits one uniform tension T along it (actuator force plus
+the tendon's own spring/damper). A real cable loses tension at every hole it slides
+through: over a hole where it turns by the wrap angle β, the capstan relation
+(Euler–Eytelwein) bounds the tension ratio of the two pieces,
+
+    e^(−μβ) ≤ T_distal / T_proximal ≤ e^(+μβ),
+
+the lower bound reached while the cable is reeled in (slides toward the motor), the upper
+one while it pays out, anything between while it sticks. This module adds that physics to
+a compiled model through MuJoCo's passive-force callback, without touching the model:
+
+* **Cable kernel** (:func:`cable_pieces`, numba): from the joint coordinates, the length,
+  direction and gradient w.r.t. the local joint velocities of every per-segment piece
+  l = t + R(s + h) − h of every cable (SPEC §2). A piece's length depends only on the
+  joints of the segment it spans, so each gradient has ≤ 3 entries. Joint types: ball,
+  any chain of 1–3 hinges sharing one anchor (``hinge_pair``, a twist joint). The same
+  output would let fixed tendons replace the spatial ones (length + sparse Jacobian).
+* **Stick/slip** (Dahl model, normalised): per hole a state z ∈ [−1, 1] with
+  dz/ds = (1 − z·sgn ds)/δ over the cable's sliding distance s through the hole (the
+  change of its length beyond the hole); the piece ratio is e^(μβz). It is integrated
+  exactly (z → sgn + (z − sgn)e^(−|Δs|/δ)) from the positions at each evaluation, so the
+  state is rate-independent, idempotent under repeated ``mj_forward`` and unconditionally
+  stable. δ (``presliding``) is the sliding distance over which friction builds up after
+  a reversal: the stick band, a numerical regularisation of ideal Coulomb stick.
+* **Force**: MuJoCo already applies −T_mj·∂l/∂q for the uniform tension; the callback adds
+  −Σ_i (T_i − T_mj)·∂l_i/∂q over the pieces, with T_i = T_mj·Π_{holes before i} e^(μβz).
+
+μ = 0 installs nothing: the model runs exactly as without this module.
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+import weakref
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..configio import require_range
+
+# *Assumed* default μ: a steel rope sliding in the holes of 3D-printed polymer disks (the
+# prototype's disks are printed, Table 1 of the paper). Dry steel on nylon/PLA/PTFE lies
+# at μ ≈ 0.05–0.25 in engineering friction tables; 0.15 is the middle of the 0.1–0.2 range
+# the issue names for steel rope in polymer or PTFE-lined holes. Not measured on the robot.
+DEFAULT_MU = 0.15
+# Stick band: 0.05 mm of sliding builds friction from zero to full after a reversal. A
+# steel rope's own stretch over one 15–21 mm piece at a ~1 N friction step is ~1 µm, so
+# the real stick is stiffer; 0.05 mm keeps the explicit friction force stable at the 4 ms
+# scenario step (friction stiffness μβT/δ ≈ 10⁴ N/m per hole, well below the 3·10⁴ N/m
+# motor loop) while being < 0.3 % of a section's 24 mm cable stroke.
+DEFAULT_PRESLIDING = 5.0e-5
+
+CABLE_TENDON_PATTERN = r"(^|/)cable_\d+_\d+$"
+
+
+@dataclass(frozen=True)
+class CableFrictionConfig:
+    """Friction of the cables in the disk holes (μ = 0: frictionless, nothing installed)."""
+
+    mu: float = DEFAULT_MU  # Coulomb coefficient, steel rope in printed-polymer holes (*assumed*)
+    presliding: float = (
+        DEFAULT_PRESLIDING  # m, Dahl stick band (numerical regularisation of stick)
+    )
+    base_hole: bool = True  # friction also where the cable enters the base plate (arriving along the base z)
+
+    def __post_init__(self) -> None:
+        require_range("mu", self.mu, 0.0, 1.0, low_inclusive=True)
+        require_range("presliding", self.presliding, 1e-7, 1e-2, low_inclusive=True)
+        if not isinstance(self.base_hole, bool):
+            from ..configio import ConfigError
+
+            raise ConfigError(
+                "base_hole", f"must be true or false (got {self.base_hole!r})"
+            )
+
+
+# ------------------------------------------------------------------------ numba kernels
+def _jit(fn):
+    from numba import njit
+
+    return njit(cache=True, fastmath=False, nogil=True)(fn)
+
+
+def _axis_angle(axis: np.ndarray, angle: float, R: np.ndarray) -> None:
+    """R = rotation of ``angle`` about the unit ``axis`` (Rodrigues)."""
+    c, s = np.cos(angle), np.sin(angle)
+    x, y, z = axis[0], axis[1], axis[2]
+    C = 1.0 - c
+    R[0, 0] = c + x * x * C
+    R[0, 1] = x * y * C - z * s
+    R[0, 2] = x * z * C + y * s
+    R[1, 0] = y * x * C + z * s
+    R[1, 1] = c + y * y * C
+    R[1, 2] = y * z * C - x * s
+    R[2, 0] = z * x * C - y * s
+    R[2, 1] = z * y * C + x * s
+    R[2, 2] = c + z * z * C
+
+
+def _quat_mat(qpos: np.ndarray, a: int, R: np.ndarray) -> None:
+    """R = rotation of the (w, x, y, z) quaternion at qpos[a:a+4] (normalised, as MuJoCo does)."""
+    w, x, y, z = qpos[a], qpos[a + 1], qpos[a + 2], qpos[a + 3]
+    n = np.sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w / n, x / n, y / n, z / n
+    R[0, 0] = 1 - 2 * (y * y + z * z)
+    R[0, 1] = 2 * (x * y - w * z)
+    R[0, 2] = 2 * (x * z + w * y)
+    R[1, 0] = 2 * (x * y + w * z)
+    R[1, 1] = 1 - 2 * (x * x + z * z)
+    R[1, 2] = 2 * (y * z - w * x)
+    R[2, 0] = 2 * (x * z - w * y)
+    R[2, 1] = 2 * (y * z + w * x)
+    R[2, 2] = 1 - 2 * (x * x + y * y)
+
+
+def _matmul3(A: np.ndarray, B: np.ndarray, out: np.ndarray) -> None:
+    """out = A·B for 3×3 (out must not alias A or B)."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j]
+
+
+def _segment_rotations(
+    qpos, seg_ball, seg_njnt, seg_qadr, seg_qref, seg_axes, seg_bmat, seg_R, seg_w
+):
+    """Per segment: R = Rb·Rj (child in parent frame) and each dof's axis w_k in the parent frame.
+
+    Hinge chain Rj = E1·E2·E3 (MuJoCo applies a body's joints in order, each about its
+    axis in the body frame); the velocity of dof k turns the child about Rb·E1..E(k−1)·a_k.
+    Ball: qvel is the angular velocity in the child frame, so w_k = Rb·Rj·e_k.
+    """
+    E = np.empty((3, 3))
+    acc = np.empty((3, 3))
+    tmp = np.empty((3, 3))
+    for g in range(seg_ball.shape[0]):
+        Rb = seg_bmat[g]
+        if seg_ball[g]:
+            _quat_mat(qpos, seg_qadr[g, 0], E)
+            _matmul3(Rb, E, seg_R[g])
+            for k in range(3):
+                for r in range(3):
+                    seg_w[g, k, r] = seg_R[g, r, k]
+        else:
+            acc[:, :] = Rb
+            for k in range(seg_njnt[g]):
+                for r in range(3):
+                    seg_w[g, k, r] = (
+                        acc[r, 0] * seg_axes[g, k, 0]
+                        + acc[r, 1] * seg_axes[g, k, 1]
+                        + acc[r, 2] * seg_axes[g, k, 2]
+                    )
+                _axis_angle(seg_axes[g, k], qpos[seg_qadr[g, k]] - seg_qref[g, k], E)
+                _matmul3(acc, E, tmp)
+                acc[:, :] = tmp
+            seg_R[g, :, :] = acc
+
+
+def _cable_pieces(
+    qpos, seg_ball, seg_njnt, seg_qadr, seg_qref, seg_axes, seg_bpos, seg_bmat, seg_jpos,
+    piece_seg, piece_parent, piece_child, seg_R, seg_w, length, direction, grad,
+):  # fmt: skip
+    """Lengths, unit directions (parent frame) and local-dof gradients of every piece."""
+    _segment_rotations(
+        qpos, seg_ball, seg_njnt, seg_qadr, seg_qref, seg_axes, seg_bmat, seg_R, seg_w
+    )
+    arm = np.empty(3)
+    vec = np.empty(3)
+    for i in range(piece_seg.shape[0]):
+        g = piece_seg[i]
+        Rb = seg_bmat[g]
+        R = seg_R[g]
+        jp = seg_jpos[g]
+        for r in range(3):  # child hole from the joint anchor, parent frame
+            arm[r] = (
+                R[r, 0] * (piece_child[i, 0] - jp[0])
+                + R[r, 1] * (piece_child[i, 1] - jp[1])
+                + R[r, 2] * (piece_child[i, 2] - jp[2])
+            )
+        for r in range(3):
+            vec[r] = (
+                seg_bpos[g, r]
+                + Rb[r, 0] * jp[0]
+                + Rb[r, 1] * jp[1]
+                + Rb[r, 2] * jp[2]
+                + arm[r]
+                - piece_parent[i, r]
+            )
+        n = np.sqrt(vec[0] * vec[0] + vec[1] * vec[1] + vec[2] * vec[2])
+        length[i] = n
+        u0, u1, u2 = vec[0] / n, vec[1] / n, vec[2] / n
+        direction[i, 0] = u0
+        direction[i, 1] = u1
+        direction[i, 2] = u2
+        ndof = 3 if seg_ball[g] else seg_njnt[g]
+        for k in range(3):
+            if k < ndof:
+                w0, w1, w2 = seg_w[g, k, 0], seg_w[g, k, 1], seg_w[g, k, 2]
+                d0 = w1 * arm[2] - w2 * arm[1]
+                d1 = w2 * arm[0] - w0 * arm[2]
+                d2 = w0 * arm[1] - w1 * arm[0]
+                grad[i, k] = u0 * d0 + u1 * d1 + u2 * d2
+            else:
+                grad[i, k] = 0.0
+
+
+def _friction_forces(
+    qpos, seg_ball, seg_njnt, seg_qadr, seg_qref, seg_axes, seg_bpos, seg_bmat, seg_jpos, seg_dofadr,
+    piece_seg, piece_parent, piece_child, cable_start, cable_end, tension, mu, presliding, base_hole,
+    z, s_prev, initialised, seg_R, seg_w, length, direction, grad, piece_tension, wrap, qfrc,
+):  # fmt: skip
+    """Update the stick/slip states and add the capstan correction to ``qfrc``.
+
+    Hole j of a cable (j = 0: base plate, j ≥ 1: the disk between piece j and j+1) has
+    wrap β_j, sliding coordinate s_j = Σ_{i>j} l_i (the cable length beyond it) and state
+    z_j; piece tensions T_1 = T·e^(μβ_0 z_0), T_{j+1} = T_j·e^(μβ_j z_j).
+    """
+    _cable_pieces(
+        qpos, seg_ball, seg_njnt, seg_qadr, seg_qref, seg_axes, seg_bpos, seg_bmat, seg_jpos,
+        piece_seg, piece_parent, piece_child, seg_R, seg_w, length, direction, grad,
+    )  # fmt: skip
+    for c in range(cable_start.shape[0]):
+        a, b = cable_start[c], cable_end[c]
+        # wraps: hole j sits before piece a+j
+        for j in range(b - a):
+            i = a + j
+            if j == 0:
+                cosb = (
+                    direction[i, 2] if base_hole else 1.0
+                )  # cable arrives along the base z
+            else:
+                # previous piece (parent frame of its segment) vs this piece rotated into that frame
+                R = seg_R[piece_seg[i - 1]]
+                cosb = 0.0
+                for r in range(3):
+                    cosb += direction[i - 1, r] * (
+                        R[r, 0] * direction[i, 0]
+                        + R[r, 1] * direction[i, 1]
+                        + R[r, 2] * direction[i, 2]
+                    )
+            cosb = min(1.0, max(-1.0, cosb))
+            wrap[i] = np.arccos(cosb)
+        # sliding coordinates and exact Dahl update
+        s = 0.0
+        for i in range(b - 1, a - 1, -1):
+            s += length[i]  # cable length beyond hole (i − a)
+            if initialised[c]:
+                ds = s - s_prev[i]
+                if ds != 0.0:
+                    sg = 1.0 if ds > 0.0 else -1.0
+                    z[i] = sg + (z[i] - sg) * np.exp(-abs(ds) / presliding)
+            else:
+                z[i] = 0.0
+            s_prev[i] = s
+        initialised[c] = True
+        T = tension[c]
+        t_piece = T
+        for i in range(a, b):
+            t_piece *= np.exp(mu * wrap[i] * z[i])
+            piece_tension[i] = t_piece
+            if T > 0.0:
+                dT = t_piece - T
+                g = piece_seg[i]
+                ndof = 3 if seg_ball[g] else seg_njnt[g]
+                for k in range(ndof):
+                    qfrc[seg_dofadr[g] + k] -= dT * grad[i, k]
+            else:
+                piece_tension[i] = T  # a slack (or pushed) cable carries no friction
+
+
+_KERNELS: dict[str, Any] = {}
+
+
+def kernels() -> dict[str, Any]:
+    """The numba-compiled kernels (compiled, or loaded from numba's cache, on first use)."""
+    if not _KERNELS:
+        global \
+            _axis_angle, \
+            _quat_mat, \
+            _matmul3, \
+            _segment_rotations, \
+            _cable_pieces, \
+            _friction_forces
+        _axis_angle = _jit(_axis_angle)
+        _quat_mat = _jit(_quat_mat)
+        _matmul3 = _jit(_matmul3)
+        _segment_rotations = _jit(_segment_rotations)
+        _cable_pieces = _jit(_cable_pieces)
+        _friction_forces = _jit(_friction_forces)
+        _KERNELS.update(cable_pieces=_cable_pieces, friction_forces=_friction_forces)
+    return _KERNELS
+
+
+# ----------------------------------------------------------------- routing from a model
+@dataclass(frozen=True)
+class CableRouting:
+    """Static description of the cables of a compiled model, read from its tendons.
+
+    Segment arrays (one entry per disk body a piece ends on): ``ball`` flag, hinge count,
+    qpos addresses, reference angles, axes (child frame), body offset ``bpos``/``bmat`` in
+    the parent frame, joint anchor ``jpos`` (child frame), first dof address. Piece arrays:
+    segment index, parent hole (parent frame), child hole (child frame). Cable c owns the
+    pieces ``cable_start[c]:cable_end[c]``, base to anchor.
+    """
+
+    tendon_ids: np.ndarray
+    names: tuple[str, ...]
+    seg_body: np.ndarray
+    seg_ball: np.ndarray
+    seg_njnt: np.ndarray
+    seg_qadr: np.ndarray
+    seg_qref: np.ndarray
+    seg_axes: np.ndarray
+    seg_bpos: np.ndarray
+    seg_bmat: np.ndarray
+    seg_jpos: np.ndarray
+    seg_dofadr: np.ndarray
+    piece_seg: np.ndarray
+    piece_parent: np.ndarray
+    piece_child: np.ndarray
+    cable_start: np.ndarray
+    cable_end: np.ndarray
+
+    @property
+    def n_pieces(self) -> int:
+        return int(self.piece_seg.shape[0])
+
+
+def cable_tendons(model, pattern: str = CABLE_TENDON_PATTERN) -> np.ndarray:
+    """Ids of the spatial tendons whose names match ``pattern`` (the arm cables)."""
+    import mujoco
+
+    rx = re.compile(pattern)
+    ids = [t for t in range(model.ntendon) if rx.search(model.tendon(t).name or "")]
+    for t in ids:
+        adr = model.tendon_adr[t]
+        if any(
+            model.wrap_type[adr + k] != mujoco.mjtWrap.mjWRAP_SITE
+            for k in range(model.tendon_num[t])
+        ):
+            raise ValueError(
+                f"tendon {model.tendon(t).name!r} is not a site-only spatial tendon"
+            )
+    return np.array(ids, dtype=np.int64)
+
+
+def cable_routing(model, tendon_ids: np.ndarray | None = None) -> CableRouting:
+    """Read the cable routing (sites, disks, joints) of ``model`` for the kernels.
+
+    Each consecutive pair of a tendon's sites must sit on a parent disk and its child,
+    joined by one ball joint or 1–3 hinges sharing one anchor (what the arm builder makes).
+    """
+
+    if tendon_ids is None:
+        tendon_ids = cable_tendons(model)
+    tendon_ids = np.asarray(tendon_ids, dtype=np.int64)
+    seg_index: dict[int, int] = {}
+    seg: dict[str, list] = {
+        k: []
+        for k in (
+            "body",
+            "ball",
+            "njnt",
+            "qadr",
+            "qref",
+            "axes",
+            "bpos",
+            "bmat",
+            "jpos",
+            "dofadr",
+        )
+    }
+    piece_seg, piece_parent, piece_child, start, end = [], [], [], [], []
+    for t in tendon_ids:
+        name = model.tendon(int(t)).name
+        adr, num = int(model.tendon_adr[t]), int(model.tendon_num[t])
+        sites = [int(model.wrap_objid[adr + k]) for k in range(num)]
+        start.append(len(piece_seg))
+        for parent_site, child_site in itertools.pairwise(sites):
+            body = int(model.site_bodyid[child_site])
+            if int(model.body_parentid[body]) != int(model.site_bodyid[parent_site]):
+                raise ValueError(
+                    f"tendon {name!r}: sites {parent_site} and {child_site} are not on a parent and its child"
+                )
+            if body not in seg_index:
+                seg_index[body] = len(seg["body"])
+                _add_segment(model, body, seg, name)
+            piece_seg.append(seg_index[body])
+            piece_parent.append(np.array(model.site_pos[parent_site], dtype=float))
+            piece_child.append(np.array(model.site_pos[child_site], dtype=float))
+        end.append(len(piece_seg))
+        if end[-1] == start[-1]:
+            raise ValueError(f"tendon {name!r} has fewer than two sites")
+    return CableRouting(
+        tendon_ids=tendon_ids,
+        names=tuple(model.tendon(int(t)).name for t in tendon_ids),
+        seg_body=np.array(seg["body"], dtype=np.int64),
+        seg_ball=np.array(seg["ball"], dtype=np.bool_),
+        seg_njnt=np.array(seg["njnt"], dtype=np.int64),
+        seg_qadr=np.array(seg["qadr"], dtype=np.int64).reshape(-1, 3),
+        seg_qref=np.array(seg["qref"], dtype=float).reshape(-1, 3),
+        seg_axes=np.array(seg["axes"], dtype=float).reshape(-1, 3, 3),
+        seg_bpos=np.array(seg["bpos"], dtype=float).reshape(-1, 3),
+        seg_bmat=np.array(seg["bmat"], dtype=float).reshape(-1, 3, 3),
+        seg_jpos=np.array(seg["jpos"], dtype=float).reshape(-1, 3),
+        seg_dofadr=np.array(seg["dofadr"], dtype=np.int64),
+        piece_seg=np.array(piece_seg, dtype=np.int64),
+        piece_parent=np.array(piece_parent, dtype=float).reshape(-1, 3),
+        piece_child=np.array(piece_child, dtype=float).reshape(-1, 3),
+        cable_start=np.array(start, dtype=np.int64),
+        cable_end=np.array(end, dtype=np.int64),
+    )
+
+
+def _add_segment(model, body: int, seg: dict[str, list], tendon: str) -> None:
+    import mujoco
+
+    first, count = int(model.body_jntadr[body]), int(model.body_jntnum[body])
+    types = [int(model.jnt_type[first + k]) for k in range(count)]
+    ball = types == [int(mujoco.mjtJoint.mjJNT_BALL)]
+    if not ball and not (
+        1 <= count <= 3 and all(t == int(mujoco.mjtJoint.mjJNT_HINGE) for t in types)
+    ):
+        raise ValueError(
+            f"tendon {tendon!r}: body {model.body(body).name!r} needs one ball joint or 1-3 hinges"
+        )
+    jpos = np.array(model.jnt_pos[first], dtype=float)
+    if any(not np.allclose(model.jnt_pos[first + k], jpos) for k in range(count)):
+        raise ValueError(
+            f"body {model.body(body).name!r}: its hinges must share one anchor"
+        )
+    qadr = np.zeros(3, dtype=np.int64)
+    qref = np.zeros(3)
+    axes = np.zeros((3, 3))
+    for k in range(1 if ball else count):
+        j = first + k
+        qadr[k] = model.jnt_qposadr[j]
+        if not ball:
+            qref[k] = model.qpos0[model.jnt_qposadr[j]]
+            axes[k] = model.jnt_axis[j] / np.linalg.norm(model.jnt_axis[j])
+    bmat = np.zeros(9)
+    mujoco.mju_quat2Mat(bmat, np.array(model.body_quat[body], dtype=float))
+    seg["body"].append(body)
+    seg["ball"].append(ball)
+    seg["njnt"].append(3 if ball else count)
+    seg["qadr"].append(qadr)
+    seg["qref"].append(qref)
+    seg["axes"].append(axes)
+    seg["bpos"].append(np.array(model.body_pos[body], dtype=float))
+    seg["bmat"].append(bmat.reshape(3, 3))
+    seg["jpos"].append(jpos)
+    seg["dofadr"].append(int(model.jnt_dofadr[first]))
+
+
+class CableKernel:
+    """Piece lengths and local gradients of all cables of a model, from its joint coordinates.
+
+    ``evaluate(qpos)`` fills ``length`` (P,), ``direction`` (P, 3, parent-disk frame) and
+    ``grad`` (P, 3): ∂l_i/∂(local dof k) for the ≤ 3 dofs of the segment piece i spans
+    (dof address ``routing.seg_dofadr[routing.piece_seg[i]] + k``). A cable's length is
+    the sum of its pieces; its Jacobian row is the scatter of its pieces' gradients.
+    """
+
+    def __init__(self, model, tendon_ids: np.ndarray | None = None) -> None:
+        self.routing = cable_routing(model, tendon_ids)
+        r = self.routing
+        n_seg, n_pieces = r.seg_body.shape[0], r.n_pieces
+        self.seg_R = np.zeros((n_seg, 3, 3))
+        self.seg_w = np.zeros((n_seg, 3, 3))
+        self.length = np.zeros(n_pieces)
+        self.direction = np.zeros((n_pieces, 3))
+        self.grad = np.zeros((n_pieces, 3))
+        self._fn = kernels()["cable_pieces"]
+
+    def evaluate(self, qpos: np.ndarray) -> None:
+        r = self.routing
+        self._fn(
+            np.ascontiguousarray(qpos, dtype=float), r.seg_ball, r.seg_njnt, r.seg_qadr, r.seg_qref, r.seg_axes,
+            r.seg_bpos, r.seg_bmat, r.seg_jpos, r.piece_seg, r.piece_parent, r.piece_child,
+            self.seg_R, self.seg_w, self.length, self.direction, self.grad,
+        )  # fmt: skip
+
+    def cable_lengths(self) -> np.ndarray:
+        """(C,) total length of each cable at the last evaluation."""
+        r = self.routing
+        return np.array(
+            [self.length[a:b].sum() for a, b in zip(r.cable_start, r.cable_end)]
+        )
+
+    def cable_jacobian(self, nv: int) -> np.ndarray:
+        """(C, nv) dense ∂L_c/∂qvel at the last evaluation (what MuJoCo's ten_J holds)."""
+        r = self.routing
+        J = np.zeros((len(r.cable_start), nv))
+        for c, (a, b) in enumerate(zip(r.cable_start, r.cable_end)):
+            for i in range(a, b):
+                g = r.piece_seg[i]
+                for k in range(3 if r.seg_ball[g] else r.seg_njnt[g]):
+                    J[c, r.seg_dofadr[g] + k] += self.grad[i, k]
+        return J
+
+
+# ------------------------------------------------------------------- the passive hook
+class CableFriction:
+    """Capstan friction with stick/slip on the cables of one (model, data) pair.
+
+    Created by :func:`install_cable_friction`; holds the per-hole states. ``active`` is
+    False when μ = 0 (nothing was installed). ``anchor_ratio()`` is each cable's
+    anchor-to-motor tension ratio at the last evaluation (1 without friction).
+    """
+
+    def __init__(
+        self,
+        model,
+        data,
+        config: CableFrictionConfig,
+        tendon_ids: np.ndarray | None = None,
+    ) -> None:
+        import mujoco
+
+        self.config = config
+        self.kernel = CableKernel(model, tendon_ids)
+        r = self.kernel.routing
+        n_cables, n_pieces = len(r.cable_start), r.n_pieces
+        self.z = np.zeros(n_pieces)  # stick/slip state of the hole before each piece
+        self.s_prev = np.zeros(n_pieces)
+        self.initialised = np.zeros(n_cables, dtype=np.bool_)
+        self.piece_tension = np.zeros(n_pieces)
+        self.wrap = np.zeros(n_pieces)  # β of the hole before each piece (rad)
+        self.tension = np.zeros(n_cables)
+        self.qfrc = np.zeros(model.nv)
+        self.active = config.mu > 0.0
+        self._fn = kernels()["friction_forces"] if self.active else None
+        # Tension sources MuJoCo puts along each tendon: its actuators and its own spring/damper.
+        trn_tendon = int(mujoco.mjtTrn.mjTRN_TENDON)
+        self._act = [
+            np.flatnonzero(
+                (model.actuator_trntype == trn_tendon)
+                & (model.actuator_trnid[:, 0] == t)
+            )
+            for t in r.tendon_ids
+        ]
+        self._act_flat = (
+            np.concatenate(self._act) if self._act else np.zeros(0, dtype=int)
+        )
+        self._act_owner = (
+            np.concatenate([[c] * len(a) for c, a in enumerate(self._act)]).astype(int)
+            if self._act
+            else np.zeros(0, dtype=int)
+        )
+        self._k = np.array(model.tendon_stiffness[r.tendon_ids], dtype=float)
+        self._b = np.array(model.tendon_damping[r.tendon_ids], dtype=float)
+        self._springlength = np.array(
+            model.tendon_lengthspring[r.tendon_ids], dtype=float
+        ).reshape(-1, 2)
+        self._model_ref = weakref.ref(model)
+        self._data_ref = weakref.ref(data)
+        self.error: Exception | None = None
+
+    # -------------------------------------------------------------- tensions and forces
+    def motor_tension(self, model, data) -> np.ndarray:
+        """(C,) the uniform tension MuJoCo applies along each cable now (N, pulling > 0).
+
+        Actuator forces are recomputed for the current state (``mj_fwdActuation``; the
+        passive stage runs before MuJoCo's own actuation stage), plus the tendon spring
+        (dead band between its two spring lengths) and damper.
+        """
+        import mujoco
+
+        T = np.zeros(len(self.kernel.routing.cable_start))
+        if self._act_flat.size:
+            mujoco.mj_fwdActuation(model, data)
+            np.add.at(T, self._act_owner, -data.actuator_force[self._act_flat])
+        ids = self.kernel.routing.tendon_ids
+        if np.any(self._k) or np.any(self._b):
+            L = data.ten_length[ids]
+            lo, hi = self._springlength[:, 0], self._springlength[:, 1]
+            stretch = np.where(L > hi, L - hi, np.where(L < lo, L - lo, 0.0))
+            T += self._k * stretch + self._b * data.ten_velocity[ids]
+        return T
+
+    def apply(self, model, data) -> None:
+        """Add the friction correction to ``data.qfrc_passive`` (the callback's work)."""
+        r = self.kernel.routing
+        k = self.kernel
+        self.tension[:] = self.motor_tension(model, data)
+        self.qfrc[:] = 0.0
+        cfg = self.config
+        self._fn(
+            data.qpos, r.seg_ball, r.seg_njnt, r.seg_qadr, r.seg_qref, r.seg_axes, r.seg_bpos, r.seg_bmat, r.seg_jpos,
+            r.seg_dofadr, r.piece_seg, r.piece_parent, r.piece_child, r.cable_start, r.cable_end, self.tension,
+            cfg.mu, cfg.presliding, cfg.base_hole, self.z, self.s_prev, self.initialised, k.seg_R, k.seg_w,
+            k.length, k.direction, k.grad, self.piece_tension, self.wrap, self.qfrc,
+        )  # fmt: skip
+        data.qfrc_passive += self.qfrc
+
+    def anchor_ratio(self) -> np.ndarray:
+        """(C,) anchor / motor tension of each cable at the last evaluation (1: no loss)."""
+        r = self.kernel.routing
+        out = np.ones(len(r.cable_start))
+        if not self.active:
+            return out
+        last = self.piece_tension[r.cable_end - 1]
+        ok = self.tension > 1e-9
+        out[ok] = last[ok] / self.tension[ok]
+        return out
+
+    def wraps(self) -> np.ndarray:
+        """(C,) total wrap angle (rad) of each cable over its holes at the last evaluation."""
+        r = self.kernel.routing
+        return np.array(
+            [self.wrap[a:b].sum() for a, b in zip(r.cable_start, r.cable_end)]
+        )
+
+    def reset(self) -> None:
+        """Forget the stick/slip history (the next evaluation starts from z = 0)."""
+        self.z[:] = 0.0
+        self.initialised[:] = False
+
+    def uninstall(self) -> None:
+        """Stop acting on this data (the global callback stays, acting on the others)."""
+        data = self._data_ref()
+        if data is not None and _REGISTRY.get(data._address) is self:
+            _unregister(data._address)
+
+    def check(self) -> None:
+        """Raise the first error the passive callback met (a C callback cannot raise itself)."""
+        if self.error is not None:
+            raise RuntimeError(
+                f"cable friction failed in the passive callback: {self.error!r}"
+            ) from self.error
+
+
+# The process-global passive callback dispatches to the (model, data) pairs registered here
+# and leaves every other model alone (sweeps and tests build several in one process); it
+# calls whatever callback was installed before it first. It is a ctypes C callback taking
+# the raw pointers: MuJoCo also runs the passive stage on internal mjData while compiling
+# a model, which a plain Python callback cannot receive (the bindings raise there).
+_REGISTRY: dict[int, CableFriction] = {}
+_C_CALLBACK: list[Any] = []
+
+
+def _passive_callback(model_ptr: int | None, data_ptr: int | None) -> None:
+    handle = _REGISTRY.get(data_ptr or 0)
+    if handle is None:
+        return
+    model, data = handle._model_ref(), handle._data_ref()
+    if model is None or data is None or model._address != model_ptr:
+        return
+    try:
+        handle.apply(model, data)
+    except Exception as exc:  # noqa: BLE001 - a C callback cannot raise: kept for CableFriction.check()
+        if handle.error is None:
+            handle.error = exc
+
+
+def _ensure_callback() -> None:
+    import ctypes
+
+    import mujoco
+
+    if not _C_CALLBACK:
+        _C_CALLBACK.append(
+            ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p)(_passive_callback)
+        )
+    current = mujoco.get_mjcb_passive()
+    if current is _C_CALLBACK[0]:
+        return
+    if current is not None:
+        raise RuntimeError(
+            "another MuJoCo passive callback is installed; cable friction cannot share it"
+        )
+    mujoco.set_mjcb_passive(_C_CALLBACK[0])
+
+
+def _unregister(key: int) -> None:
+    """Drop one registration; with none left, hand the process-global callback back."""
+    _REGISTRY.pop(key, None)
+    if not _REGISTRY and _C_CALLBACK:
+        import mujoco
+
+        if mujoco.get_mjcb_passive() is _C_CALLBACK[0]:
+            mujoco.set_mjcb_passive(None)
+
+
+def install_cable_friction(
+    model, data, config: CableFrictionConfig, tendon_ids: np.ndarray | None = None
+) -> CableFriction:
+    """Attach cable friction to ``data`` of ``model``; returns its handle.
+
+    With μ = 0 nothing is registered (the model runs exactly as before) and the handle
+    reports anchor ratios of 1. The stick/slip state starts neutral (z = 0) at the first
+    evaluation; it lives in the handle, keyed to this ``data`` (dropped when it is freed).
+    """
+    handle = CableFriction(model, data, config, tendon_ids)
+    if handle.active:
+        _ensure_callback()
+        key = data._address
+        _REGISTRY[key] = handle
+        weakref.finalize(data, _unregister, key)
+    return handle
