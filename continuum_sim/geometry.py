@@ -149,16 +149,24 @@ class RodBackbone:
 
 @dataclass(frozen=True)
 class Material:
-    """Flexure-hinge (and disk) material (printed polymer by default; *assumed*)."""
+    """Flexure-leaf (and disk) material: a printed engineering polymer (*assumed*, docs/model.md).
+
+    E = 2.0 GPa, ν = 0.38, ρ = 1250 kg/m³: PETG-class printed polymer (datasheet tensile
+    modulus 2.0–2.1 GPa, ν 0.38–0.40, density 1.23–1.27 g/cm³). ``elastic_strain_limit``
+    4 %: such polymers yield near 4–6 % strain; the default leaves sit as far off the
+    joint as this allows at each section's full bend (``model.stiffness.strain_limited_leaf_radius``).
+    """
 
     youngs_modulus: float = 2.0e9
     poisson_ratio: float = 0.38
     density: float = 1250.0
+    elastic_strain_limit: float = 0.04
 
     def __post_init__(self) -> None:
         require_range("youngs_modulus", self.youngs_modulus, 0.0, 1e13)
         require_range("poisson_ratio", self.poisson_ratio, -1.0, 0.5, high_inclusive=False)
         require_range("density", self.density, 0.0, 1e5)
+        require_range("elastic_strain_limit", self.elastic_strain_limit, 0.0, 1.0)
 
     @property
     def shear_modulus(self) -> float:
@@ -188,6 +196,9 @@ class ToolGeometry:
 
 def _default_sections() -> tuple[SectionGeometry, ...]:
     # Base -> tip; the paper numbers sections from the tip (its Section 3 is our index 0).
+    # leaf_radius 0: leaves bent about the joint (the stiffness every run has used so far).
+    # The strain-limited placement (docs/model.md: 2.9/2.3/1.8 mm, x3.3-3.7 stiffer) is
+    # ``model.stiffness.strain_limited_geometry`` until the closed loop holds on the stiffer plant.
     return (
         SectionGeometry(0.210, 0.046, 0.006, 0.001, cable_angles_deg=(0.0, 120.0, 240.0)),
         SectionGeometry(0.180, 0.043, 0.005, 0.001, cable_angles_deg=(40.0, 160.0, 280.0)),
@@ -210,8 +221,10 @@ class ArmGeometry:
     backbone: Literal["flexure", "rod"] = "flexure"
     rod: RodBackbone = field(default_factory=RodBackbone)
     # The central joint of a flexure segment: "ball" (3 rotations free: the leaves alone
-    # resist twist) or "universal" (twist blocked by the joint). Paper text: ball joint.
-    central_joint: Literal["ball", "universal"] = "ball"
+    # resist twist) or "universal" (twist blocked by the joint). Default universal: the
+    # paper's prototype photo shows a "2-DoF universal joint" (Fig. 13d) in its "2-DoF
+    # segments"; its text says "ball joint". The scenario's hinge_pair model matches it.
+    central_joint: Literal["ball", "universal"] = "universal"
 
     def __post_init__(self) -> None:
         if not isinstance(self.sections, tuple) or not 1 <= len(self.sections) <= 10:

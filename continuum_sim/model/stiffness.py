@@ -140,3 +140,57 @@ def joint_stiffness(
     """Per-joint bending stiffness k = n_model·EI_sec/L (mean of x and y) for a model with ``n_model`` joints."""
     kx, ky, _ = joint_stiffnesses(geometry, section_index, n_model, scale)
     return 0.5 * (kx + ky)
+
+
+def leaf_peak_strain(geometry: ArmGeometry, section: SectionGeometry, bend: float | None = None) -> float:
+    """Largest axial strain in a leaf when the section is bent by ``bend`` (default: its max bend).
+
+    Plane sections of a leaf whose ends turn with the disks about the joint centre: a
+    fibre at in-plane position P strains by (θ_seg/g)·(P·m), m ⟂ the bending axis, so
+    the peak is θ_seg/g times the farthest leaf corner's distance from the axis.
+    """
+    theta = (section.max_bend if bend is None else bend) / section.n_segments
+    g = section.leaf_length(geometry.disk_thickness)
+    reach = math.hypot(section.leaf_radius + section.hinge_thickness / 2.0, section.hinge_width / 2.0)
+    return theta * reach / g
+
+
+def strain_limited_leaf_radius(geometry: ArmGeometry, section: SectionGeometry) -> float:
+    """The largest leaf radius whose peak strain at the section's max bend stays within the material's limit.
+
+    Zero when even leaves on the axis exceed it (their own bending alone is too much).
+    """
+    theta = section.max_bend / section.n_segments
+    g = section.leaf_length(geometry.disk_thickness)
+    reach = geometry.material.elastic_strain_limit * g / theta
+    half_w, half_t = section.hinge_width / 2.0, section.hinge_thickness / 2.0
+    if reach <= math.hypot(half_t, half_w):
+        return 0.0
+    return math.sqrt(reach * reach - half_w * half_w) - half_t
+
+
+def bend_tension(geometry: ArmGeometry, section_index: int, bend: float | None = None, scale: float = 1.0) -> float:
+    """Quasi-static cable tension (N) that holds a section at ``bend`` (default max): M = K_seg·θ/n = T·r_hole.
+
+    One cable in the bending plane; the worst direction (30° off a cable) needs 1/cos 30° more.
+    Gravity, pretension and the distal cables' loads on this section are not included.
+    """
+    section = geometry.sections[section_index]
+    theta = (section.max_bend if bend is None else bend) / section.n_segments
+    return scale * segment_bending_stiffness(geometry, section) * theta / geometry.cable_hole_radius
+
+
+def strain_limited_geometry(geometry: ArmGeometry, resolution: float = 1e-4) -> ArmGeometry:
+    """``geometry`` with every section's leaves at its strain-limited radius, rounded down to ``resolution``.
+
+    For the defaults: 2.9 / 2.3 / 1.8 mm (proximal, middle, distal).
+    """
+    import dataclasses
+
+    sections = tuple(
+        dataclasses.replace(
+            s, leaf_radius=round(math.floor(strain_limited_leaf_radius(geometry, s) / resolution + 1e-9) * resolution, 12)
+        )
+        for s in geometry.sections
+    )
+    return dataclasses.replace(geometry, sections=sections)

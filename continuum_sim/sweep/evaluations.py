@@ -7,6 +7,12 @@
 * ``scenario`` / ``stage``: the whole sample-removal task, or the task up to one stage,
   through ``continuum_sim.scenario.runner.run_scenario``; its metrics, flattened.
 
+Payload: the static evaluations carry the tool named by their ``tool`` field (default
+the grinder; the same mass, centre of mass and inertia as the task scene's tool,
+``sweep.payload``) and report its mass as ``payload_kg``; the task evaluations carry
+both arms' tools as the scene builds them (grinder ``model.grinder_mass``, gripper
+``model.gripper_mass``, plus the sample once gripped).
+
 The configs are frozen and validated; ``check`` validates against a variant's config
 (e.g. a pose inside every variant's bending limits) before any work starts.
 """
@@ -28,6 +34,7 @@ GRAVITY_SAG_METRICS = (
     "max_cable_tension_n",
     "min_cable_tension_n",
     "residual_speed_rad_s",
+    "payload_kg",
 )
 TIP_DEFLECTION_METRICS = (
     "deflection_mm",
@@ -36,7 +43,9 @@ TIP_DEFLECTION_METRICS = (
     "linear_prediction_mm",
     "max_cable_tension_n",
     "residual_speed_rad_s",
+    "payload_kg",
 )
+TOOLS = ("grinder", "gripper", "none")
 SCENARIO_DEFAULT_METRICS = ("sample_detached", "max_cable_tension_n", "min_arm_distance_m")
 
 
@@ -94,11 +103,11 @@ class GravitySag(Evaluation):
     static: ClassVar[bool] = True
 
     q_deg: tuple[float, ...] = (60.0, 0.0, 30.0, 0.0, 0.0, 0.0)  # bent sideways: gravity has a lever
-    tool: str = "grinder"
+    tool: str = "grinder"  # the payload carried at the tip (see the module docstring)
     settle_s: float = 2.0  # simulated seconds per phase (without, then with gravity)
 
     def __post_init__(self) -> None:
-        if self.tool not in ("grinder", "gripper", "none"):
+        if self.tool not in TOOLS:
             raise ConfigError("tool", f"must be 'grinder', 'gripper' or 'none' (got {self.tool!r})")
         require_range("settle_s", self.settle_s, 0.0, 120.0)
 
@@ -122,9 +131,12 @@ class TipDeflection(Evaluation):
     gravity: bool = False
     q_deg: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     settle_s: float = 8.0  # the cable-free backbone is lightly damped: ~0.1 % of the static answer after 8 s
+    tool: str = "grinder"  # the payload carried at the tip (its weight acts when gravity is on)
 
     def __post_init__(self) -> None:
         require_range("force_n", self.force_n, 0.0, 1e4)
+        if self.tool not in TOOLS:
+            raise ConfigError("tool", f"must be 'grinder', 'gripper' or 'none' (got {self.tool!r})")
         if len(self.direction) != 3 or math.hypot(*self.direction) == 0.0:
             raise ConfigError("direction", f"must be a non-zero 3-vector (got {list(self.direction)})")
         for i, value in enumerate(self.direction):

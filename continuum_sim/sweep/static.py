@@ -42,6 +42,7 @@ from ..model.options import ModelOptions, model_geometry  # noqa: E402
 from ..model.state import set_arm_configuration  # noqa: E402
 from ..scenario.config import ScenarioConfig  # noqa: E402
 from .evaluations import Evaluation, EvaluationFailed, GravitySag, TipDeflection  # noqa: E402
+from .payload import PAYLOAD_BODY, add_payload, tool_payload  # noqa: E402
 
 FULL = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 CTRL = int(mujoco.mjtState.mjSTATE_CTRL)
@@ -71,13 +72,21 @@ def model_options(config: ScenarioConfig, evaluation: Evaluation) -> ModelOption
 
 
 def tool_of(evaluation: Evaluation) -> str:
-    return evaluation.tool if isinstance(evaluation, GravitySag) else "none"
+    return evaluation.tool if isinstance(evaluation, (GravitySag, TipDeflection)) else "none"
 
 
 def build_model(config: ScenarioConfig, evaluation: Evaluation) -> mujoco.MjModel:
-    """The variant's own single-arm model: PyMJCF build and compile."""
-    root = build_single_arm_model(config.arm, model_options(config, evaluation), tool_of(evaluation))
+    """The variant's own single-arm model carrying its tool as a payload: PyMJCF build and compile."""
+    tool = tool_of(evaluation)
+    root = build_single_arm_model(config.arm, model_options(config, evaluation), tool)
+    add_payload(root, "arm", tool_payload(config, tool))
     return mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
+
+
+def payload_mass(model: mujoco.MjModel) -> float:
+    """Mass (kg) of the tool payload the model carries (0 without one)."""
+    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"arm/{PAYLOAD_BODY}")
+    return float(model.body_mass[body]) if body >= 0 else 0.0
 
 
 def _flat(data: Any, prefix: str = "") -> dict[str, Any]:
@@ -296,6 +305,7 @@ def _metrics(case: Case, final_a: np.ndarray, final_b: np.ndarray) -> dict[str, 
             "max_cable_tension_n": float(tension.max()),
             "min_cable_tension_n": float(tension.min()),
             "residual_speed_rad_s": speed,
+            "payload_kg": payload_mass(case.model),
         }
     force = case.force
     unit = force / np.linalg.norm(force) if np.linalg.norm(force) > 0 else np.zeros(3)
@@ -310,6 +320,7 @@ def _metrics(case: Case, final_a: np.ndarray, final_b: np.ndarray) -> dict[str, 
         "linear_prediction_mm": prediction,
         "max_cable_tension_n": float(tension.max()) if tension.size else None,
         "residual_speed_rad_s": speed,
+        "payload_kg": payload_mass(case.model),
     }
 
 

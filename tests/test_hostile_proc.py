@@ -1,0 +1,182 @@
+"""Faults that need real processes or real runs: broken pipes, Ctrl-C/SIGTERM, SIGKILL of a sweep driver,
+divergence, and run folders that tell the truth (running / complete / interrupted / diverged)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from continuum_sim.cli import EXIT_BROKEN_PIPE, EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_TERMINATED, EXIT_USAGE, main
+from continuum_sim.configio import ConfigError
+from continuum_sim.runfolder import MARKER, finish, mark_running, prepare_run_folder, read_state
+
+CLI = [sys.executable, "-m", "continuum_sim"]
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ)
+    env.setdefault("MUJOCO_GL", "egl")
+    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[1]) + os.pathsep + env.get("PYTHONPATH", "")
+    return env
+
+
+def _one_line(err: str) -> str:
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def test_broken_pipe_is_silent():
+    # `continuum-sim fk ... | head -c0`: the reader is gone before the first write.
+    proc = subprocess.Popen([*CLI, "fk", "0.5", "0", "0.3", "0", "0", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            env=_env())
+    proc.stdout.close()
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == EXIT_BROKEN_PIPE, err
+    assert b"Traceback" not in err and b"BrokenPipe" not in err
+
+
+def _wait_for(path: Path, proc: subprocess.Popen, timeout: float = 120.0) -> None:
+    end = time.monotonic() + timeout
+    while not path.exists():
+        assert proc.poll() is None, proc.communicate()[1]
+        assert time.monotonic() < end, f"{path} never appeared"
+        time.sleep(0.05)
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, EXIT_INTERRUPTED), (signal.SIGTERM, EXIT_TERMINATED)],
+                         ids=["ctrl-c", "sigterm"])
+def test_interrupted_run_is_one_line_and_marked(tmp_path, sig, code):
+    out = tmp_path / "run"
+    proc = subprocess.Popen([*CLI, "run", "--quiet", "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=_env())
+    _wait_for(out / "config.toml", proc)  # past planning: the model is built and the run folder is being filled
+    assert read_state(out) == "running"
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == code, err
+    assert "interrupted" in _one_line(err) or "terminated" in _one_line(err)
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == "interrupted" and metrics["status_reason"]
+    assert not (out / MARKER).exists() and not (out / "video.mp4").exists()
+    assert read_state(out) == "interrupted"
+
+
+def test_diverged_run_is_marked(tmp_path, capsys):
+    config = tmp_path / "diverge.toml"
+    config.write_text("[model]\ntimestep = 0.01\ncable_kp = 1.0e6\ncable_max_force = 1.0e5\n")
+    out = tmp_path / "run"
+    assert main(["run", "--quiet", "--config", str(config), "--out", str(out)]) == EXIT_DIVERGED
+    assert "diverged" in _one_line(capsys.readouterr().err)
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == "diverged" and "diverged" in metrics["status_reason"]
+    assert not (out / MARKER).exists() and read_state(out) == "diverged"
+    # The folder now holds a run: a second run into it is refused, nothing is touched.
+    before = sorted(p.name for p in out.iterdir())
+    assert main(["run", "--quiet", "--out", str(out)]) == EXIT_USAGE
+    assert "already holds a run (diverged)" in _one_line(capsys.readouterr().err)
+    assert sorted(p.name for p in out.iterdir()) == before
+
+
+def test_overwrite_clears_only_run_folders(tmp_path):
+    run = tmp_path / "run"
+    mark_running(run)
+    (run / "config.toml").write_text("old\n")
+    (run / "video.mp4").write_bytes(b"old video")
+    (run / "plots").mkdir()
+    (run / "plots" / "a.png").write_bytes(b"png")
+    finish(run, "complete")
+    assert read_state(run) == "complete"
+    with pytest.raises(ConfigError, match="already holds a run \\(complete\\); pass --overwrite"):
+        prepare_run_folder(run, overwrite=False)
+    prepare_run_folder(run, overwrite=True)
+    assert list(run.iterdir()) == []
+    home = tmp_path / "home"
+    home.mkdir()
+    (home / "thesis.tex").write_text("precious\n")
+    with pytest.raises(ConfigError, match="not a run folder"):
+        prepare_run_folder(home, overwrite=True)
+    assert (home / "thesis.tex").exists()
+
+
+def test_killed_run_reads_incomplete_and_in_use_folder_is_not_cleared(tmp_path):
+    run = tmp_path / "run"
+    mark_running(run)  # this process: alive
+    marker = json.loads((run / MARKER).read_text())
+    assert marker["status"] == "running" and marker["pid"] == os.getpid()
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    (run / MARKER).write_text(json.dumps({"status": "running", "pid": int(dead.stdout)}))
+    assert read_state(run) == "incomplete"  # SIGKILLed: marker left, process gone
+    child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        (run / MARKER).write_text(json.dumps({"status": "running", "pid": child.pid}))
+        assert read_state(run) == "running"
+        with pytest.raises(ConfigError, match="in use by a running run"):
+            prepare_run_folder(run, overwrite=True)
+    finally:
+        child.kill()
+        child.wait()
+
+
+def test_interrupted_video_is_not_left_under_the_final_name(tmp_path):
+    run = tmp_path / "run"
+    mark_running(run)
+    (run / "video.mp4").write_bytes(b"19.5 of 51.3 s")
+    finish(run, "interrupted", "KeyboardInterrupt")
+    assert not (run / "video.mp4").exists() and (run / "video.interrupted.mp4").exists()
+    assert json.loads((run / "metrics.json").read_text())["status"] == "interrupted"
+
+
+def _children(pid: int) -> set[int]:
+    """All descendants of ``pid`` (from /proc)."""
+    parents: dict[int, int] = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                stat = (entry / "stat").read_text()
+            except OSError:
+                continue
+            parents[int(entry.name)] = int(stat.rsplit(")", 1)[1].split()[1])
+    out, frontier = set(), {pid}
+    while frontier:
+        frontier = {p for p, parent in parents.items() if parent in frontier} - out
+        out |= frontier
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def test_sigkill_of_sweep_driver_leaves_no_workers(tmp_path):
+    spec = tmp_path / "slow.toml"
+    spec.write_text('[grid]\n"model.stiffness_scale" = [1.0, 1.1, 1.2, 1.3]\n[evaluation]\nkind = "gravity_sag"\nsettle_s = 100.0\n')
+    driver = subprocess.Popen([*CLI, "sweep", str(spec), "--out", str(tmp_path / "out"), "--workers", "2", "--batch", "off",
+                               "--quiet"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=_env())
+    end = time.monotonic() + 120
+    workers: set[int] = set()
+    while len(workers) < 4 and time.monotonic() < end:  # resource tracker, forkserver, two workers
+        assert driver.poll() is None
+        time.sleep(0.2)
+        workers = _children(driver.pid)
+    assert len(workers) >= 4
+    driver.kill()
+    driver.wait()
+    end = time.monotonic() + 30
+    while any(_alive(p) for p in workers) and time.monotonic() < end:
+        time.sleep(0.2)
+    left = [p for p in workers if _alive(p)]
+    for pid in left:  # do not leave them behind even when the test fails
+        os.kill(pid, signal.SIGKILL)
+    assert not left, f"orphan processes {left}"
