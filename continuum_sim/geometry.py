@@ -312,4 +312,6 @@ class ArmGeometry:
 
     def cable_names(self, arm: str) -> list[str]:
         """SPEC §6 tendon names, in ``cable_lengths`` order."""
-        return [f"{arm}/cable_{k}_{c}" for k in range(self.n_sections) for c in range(3)]
+        from .model.names import arm_cable_names  # the builders' naming (model/names.py)
+
+        return arm_cable_names(arm, self.n_sections)

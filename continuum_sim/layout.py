@@ -31,6 +31,9 @@ import numpy as np
 
 from .configio import ConfigError, require_positive, require_range, require_solimp, require_solref
 
+ARMS = ("left", "right")  # the two arms, in the order every per-arm array and loop uses
+TOOLS = ("grinder", "gripper")
+
 
 @dataclass(frozen=True)
 class ArmMount:
@@ -175,6 +178,17 @@ class TaskLayout:
         plate = self.plate
         T[:3, 3] = [plate.corner_x - self.grasp.depth, plate.corner_y + self.grasp.edge_offset, plate.top_z - plate.thickness / 2]
         return T
+
+    def arm_for(self, tool: str) -> str:
+        """The arm that carries ``tool`` (the one place the arm<->tool pairing is read)."""
+        for arm in ARMS:
+            if self.mount(arm).tool == tool:
+                return arm
+        raise ConfigError("tool", f"no arm carries a {tool!r} (tools: {', '.join(self.mount(a).tool for a in ARMS)})")
+
+    def tool_of(self, arm: str) -> str:
+        """The tool ``arm`` carries."""
+        return self.mount(arm).tool
 
     def mount(self, arm: str) -> ArmMount:
         if arm == "left":

@@ -30,14 +30,13 @@ from . import kinematics as kin
 from .configio import ConfigError, require_positive, require_range
 from .geometry import ArmGeometry
 from .ik import IKOptions, StepLimits, interpolate_pose, interpolate_q, solve_path
-from .layout import TaskLayout
+from .layout import ARMS, TaskLayout
 from .workspace import UnreachableError, check_poses
 
 Array = NDArray[np.float64]
 
 STAGE_NAMES = ("initial", "clamping", "milling", "retrieval", "return")
 SEGMENT_NAMES = ("hold", "approach", "grasp", "close", "spin_up", "cutting", "exit", "return", "carry", "final")
-ARMS = ("left", "right")
 
 
 # ------------------------------------------------------------------------ config
@@ -147,11 +146,23 @@ class TaskPlan:
     def n(self) -> int:
         return int(self.t.size)
 
+    def q(self, arm: str) -> Array:
+        """(N, 6) planned configurations of ``arm``."""
+        return self.q_left if arm == "left" else self.q_right if arm == "right" else _unknown_arm(arm)
+
+    def tcp(self, arm: str) -> Array:
+        """(N, 4, 4) planned world tool-centre poses of ``arm``."""
+        return self.tcp_left if arm == "left" else self.tcp_right if arm == "right" else _unknown_arm(arm)
+
     def stage_mask(self, name: str) -> NDArray[np.bool_]:
         return self.stage == self.stage_names.index(name)
 
     def segment_mask(self, name: str) -> NDArray[np.bool_]:
         return self.segment == self.segment_names.index(name)
+
+
+def _unknown_arm(arm: str) -> Array:
+    raise KeyError(f"the plan has no arm {arm!r}")
 
 
 # ------------------------------------------------------------------------ timing

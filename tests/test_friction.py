@@ -78,6 +78,14 @@ def _drive(model, data, act: int, tensions: np.ndarray, ten: int, record: bool =
     return np.array(out)
 
 
+def _settle(model, data, act: int, T: float, ten: int, max_steps: int = 3000) -> None:
+    """Hold the motor tension until the arm is at rest (|qvel| < 1e-4 rad/s) or max_steps."""
+    for _ in range(max_steps // 250):
+        _drive(model, data, act, np.full(250, T), ten)
+        if np.abs(data.qvel).max() < 1e-4:
+            return
+
+
 def _hole_points(model, data, ten: int) -> np.ndarray:
     adr, num = model.tendon_adr[ten], model.tendon_num[ten]
     return data.site_xpos[model.wrap_objid[adr : adr + num]]
@@ -165,7 +173,8 @@ def test_capstan_over_90_degrees(rig, mu: float) -> None:
         _slack(model, data)
         handle = fr.install_cable_friction(model, data, fr.CableFrictionConfig(mu=mu))
         # monotonic loading (the cable only reels in), then hold until static
-        _drive(model, data, act, np.r_[np.linspace(0.0, T, 250), np.full(750, T)], ten)
+        _drive(model, data, act, np.linspace(0.0, T, 250), ten)
+        _settle(model, data, act, T, ten)
         mujoco.mj_forward(model, data)
         p = _hole_points(model, data, ten)
         last = (p[-1] - p[-2]) / np.linalg.norm(p[-1] - p[-2])
@@ -195,7 +204,8 @@ def test_frictionless_anchor_carries_the_motor_tension(rig) -> None:
     handle = fr.install_cable_friction(model, data, fr.CableFrictionConfig(mu=0.0))
     assert not handle.active
     T = _tension_for_bend(model, ten, np.pi / 2)
-    _drive(model, data, act, np.r_[np.linspace(0.0, T, 250), np.full(750, T)], ten)
+    _drive(model, data, act, np.linspace(0.0, T, 250), ten)
+    _settle(model, data, act, T, ten)
     mujoco.mj_forward(model, data)
     assert _anchor_tension(model, data, ten) / T == pytest.approx(1.0, abs=2e-3)
 
@@ -208,10 +218,12 @@ def _loop(model, act, ten, mu: float) -> tuple[float, float]:
     handle = fr.install_cable_friction(model, data, fr.CableFrictionConfig(mu=mu))
     top = _tension_for_bend(model, ten, np.radians(80.0))
     mid = 0.55 * top
-    _drive(model, data, act, np.r_[np.linspace(0.0, mid, 250), np.full(500, mid)], ten)
+    _drive(model, data, act, np.linspace(0.0, mid, 250), ten)
+    _settle(model, data, act, mid, ten)
     loading = _section_bend(model, data, ten)
     _drive(model, data, act, np.r_[np.linspace(mid, top, 125), np.full(250, top)], ten)
-    _drive(model, data, act, np.r_[np.linspace(top, mid, 125), np.full(500, mid)], ten)
+    _drive(model, data, act, np.linspace(top, mid, 125), ten)
+    _settle(model, data, act, mid, ten)
     unloading = _section_bend(model, data, ten)
     assert np.abs(data.qvel).max() < 1e-3  # static
     handle.uninstall()

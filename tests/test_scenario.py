@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,6 +11,8 @@ import pytest
 from continuum_sim.scenario.config import ScenarioConfig, merged
 from continuum_sim.scenario.metrics import WALL_CLOCK_METRICS
 from continuum_sim.scenario.runner import SimulationDiverged, run_scenario
+
+DATA = Path(__file__).parent / "data"
 
 
 @pytest.fixture(scope="module")
@@ -57,6 +60,24 @@ def test_run_folder_holds_everything(closed_run):
     breakdown = metrics["wall_breakdown_s"]
     assert min(breakdown.values()) >= 0.0 and breakdown["physics_mj_step"] > 0.0
     assert sum(breakdown.values()) == pytest.approx(metrics["wall_seconds"], rel=1e-9)
+
+
+def test_default_run_matches_the_stored_reference(closed_run):
+    """The default run's metrics.json equals tests/data/reference_metrics.json (wall-clock keys aside).
+
+    The reference was first generated on the pre-pipeline commit 94c3f9d (kept as
+    tests/data/metrics_94c3f9d.json): the pipeline refactor reproduced it bit for bit. A
+    commit that changes the physics or the defaults ON PURPOSE regenerates the reference
+    with ``python scripts/update_reference_metrics.py`` and says so in its message.
+    """
+    out, metrics = closed_run
+    reference = json.loads((DATA / "reference_metrics.json").read_text())
+    assert ScenarioConfig.from_toml(DATA / "reference_config.toml") == ScenarioConfig.default(), (
+        "the defaults changed: regenerate with scripts/update_reference_metrics.py"
+    )
+    strip = lambda m: {k: v for k, v in m.items() if k not in WALL_CLOCK_METRICS}  # noqa: E731
+    written = json.loads((out / "metrics.json").read_text())
+    assert json.dumps(strip(written), sort_keys=True) == json.dumps(strip(reference), sort_keys=True)
 
 
 def test_same_configuration_gives_identical_metrics():
@@ -118,7 +139,7 @@ def test_recorded_normal_forces_equal_mujocos_contact_force(cone):
     """The vectorised per-record normal forces against ``mj_contactForce``, contact by contact."""
     import mujoco
 
-    from continuum_sim.scenario.runner import _normal_forces
+    from continuum_sim.scenario.simulate import normal_forces
 
     xml = f"""<mujoco><option cone="{cone}" timestep="0.002"/><worldbody>
       <geom type="plane" size="1 1 0.1"/>
@@ -137,4 +158,4 @@ def test_recorded_normal_forces_equal_mujocos_contact_force(cone):
         mujoco.mj_contactForce(model, data, i, force)
         expected[i] = abs(force[0])
     assert expected.min() > 0.0
-    np.testing.assert_allclose(_normal_forces(model, data, data.ncon), expected, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(normal_forces(model, data, data.ncon), expected, rtol=1e-12, atol=1e-12)

@@ -210,15 +210,30 @@ def _cable_pieces(
 
 def _friction_forces(
     qpos, seg_ball, seg_njnt, seg_qadr, seg_qref, seg_axes, seg_bpos, seg_bmat, seg_jpos, seg_dofadr,
-    piece_seg, piece_parent, piece_child, cable_start, cable_end, tension, mu, presliding, base_hole,
-    z, s_prev, initialised, seg_R, seg_w, length, direction, grad, piece_tension, wrap, qfrc,
+    piece_seg, piece_parent, piece_child, cable_start, cable_end, tendon_ids,
+    act_ids, act_owner, actuator_force, ten_stiffness, ten_damping, ten_spring, ten_length, ten_velocity,
+    mu, presliding, base_hole, z, s_prev, initialised, tension,
+    seg_R, seg_w, length, direction, grad, piece_tension, wrap, qfrc,
 ):  # fmt: skip
     """Update the stick/slip states and add the capstan correction to ``qfrc``.
 
-    Hole j of a cable (j = 0: base plate, j ≥ 1: the disk between piece j and j+1) has
-    wrap β_j, sliding coordinate s_j = Σ_{i>j} l_i (the cable length beyond it) and state
-    z_j; piece tensions T_1 = T·e^(μβ_0 z_0), T_{j+1} = T_j·e^(μβ_j z_j).
+    T (``tension``, written) is the uniform tension MuJoCo applies along each tendon: minus
+    its actuators' forces plus its spring (dead band between the two spring lengths) and
+    damper. Hole j of a cable (j = 0: base plate, j ≥ 1: the disk between piece j and j+1)
+    has wrap β_j, sliding coordinate s_j = Σ_{i>j} l_i (the cable length beyond it) and
+    state z_j; piece tensions T_1 = T·e^(μβ_0 z_0), T_{j+1} = T_j·e^(μβ_j z_j).
     """
+    for c in range(cable_start.shape[0]):
+        t = tendon_ids[c]
+        L = ten_length[t]
+        stretch = 0.0
+        if L > ten_spring[c, 1]:
+            stretch = L - ten_spring[c, 1]
+        elif L < ten_spring[c, 0]:
+            stretch = L - ten_spring[c, 0]
+        tension[c] = ten_stiffness[c] * stretch + ten_damping[c] * ten_velocity[t]
+    for j in range(act_ids.shape[0]):
+        tension[act_owner[j]] -= actuator_force[act_ids[j]]
     _cable_pieces(
         qpos, seg_ball, seg_njnt, seg_qadr, seg_qref, seg_axes, seg_bpos, seg_bmat, seg_jpos,
         piece_seg, piece_parent, piece_child, seg_R, seg_w, length, direction, grad,
@@ -531,71 +546,46 @@ class CableFriction:
         self.piece_tension = np.zeros(n_pieces)
         self.wrap = np.zeros(n_pieces)  # β of the hole before each piece (rad)
         self.tension = np.zeros(n_cables)
-        self.qfrc = np.zeros(model.nv)
         self.active = config.mu > 0.0
         self._fn = kernels()["friction_forces"] if self.active else None
         # Tension sources MuJoCo puts along each tendon: its actuators and its own spring/damper.
         trn_tendon = int(mujoco.mjtTrn.mjTRN_TENDON)
-        self._act = [
-            np.flatnonzero(
-                (model.actuator_trntype == trn_tendon)
-                & (model.actuator_trnid[:, 0] == t)
-            )
-            for t in r.tendon_ids
-        ]
-        self._act_flat = (
-            np.concatenate(self._act) if self._act else np.zeros(0, dtype=int)
-        )
-        self._act_owner = (
-            np.concatenate([[c] * len(a) for c, a in enumerate(self._act)]).astype(int)
-            if self._act
-            else np.zeros(0, dtype=int)
-        )
-        self._k = np.array(model.tendon_stiffness[r.tendon_ids], dtype=float)
-        self._b = np.array(model.tendon_damping[r.tendon_ids], dtype=float)
-        self._springlength = np.array(
-            model.tendon_lengthspring[r.tendon_ids], dtype=float
-        ).reshape(-1, 2)
+        act_ids, act_owner = [], []
+        for c, t in enumerate(r.tendon_ids):
+            for a in np.flatnonzero((model.actuator_trntype == trn_tendon) & (model.actuator_trnid[:, 0] == t)):
+                act_ids.append(int(a))
+                act_owner.append(c)
+        self._act_ids = np.array(act_ids, dtype=np.int64)
+        self._act_owner = np.array(act_owner, dtype=np.int64)
+        self._ten_k = np.array(model.tendon_stiffness[r.tendon_ids], dtype=float)
+        self._ten_b = np.array(model.tendon_damping[r.tendon_ids], dtype=float)
+        self._ten_spring = np.array(model.tendon_lengthspring[r.tendon_ids], dtype=float).reshape(-1, 2)
+        # Views into data's buffers (fixed for its lifetime): no per-step attribute lookups.
+        self._views = (data.qpos, data.actuator_force, data.ten_length, data.ten_velocity, data.qfrc_passive)
         self._model_ref = weakref.ref(model)
         self._data_ref = weakref.ref(data)
         self.error: Exception | None = None
 
     # -------------------------------------------------------------- tensions and forces
-    def motor_tension(self, model, data) -> np.ndarray:
-        """(C,) the uniform tension MuJoCo applies along each cable now (N, pulling > 0).
+    def apply(self, model, data) -> None:
+        """Add the friction correction to ``data.qfrc_passive`` (the callback's work).
 
-        Actuator forces are recomputed for the current state (``mj_fwdActuation``; the
-        passive stage runs before MuJoCo's own actuation stage), plus the tendon spring
-        (dead band between its two spring lengths) and damper.
+        The passive stage runs before MuJoCo's actuation stage, so the actuator forces of
+        the current state are computed first (``mj_fwdActuation``, ~1 µs; MuJoCo redoes it).
         """
         import mujoco
 
-        T = np.zeros(len(self.kernel.routing.cable_start))
-        if self._act_flat.size:
+        if self._act_ids.size:
             mujoco.mj_fwdActuation(model, data)
-            np.add.at(T, self._act_owner, -data.actuator_force[self._act_flat])
-        ids = self.kernel.routing.tendon_ids
-        if np.any(self._k) or np.any(self._b):
-            L = data.ten_length[ids]
-            lo, hi = self._springlength[:, 0], self._springlength[:, 1]
-            stretch = np.where(L > hi, L - hi, np.where(L < lo, L - lo, 0.0))
-            T += self._k * stretch + self._b * data.ten_velocity[ids]
-        return T
-
-    def apply(self, model, data) -> None:
-        """Add the friction correction to ``data.qfrc_passive`` (the callback's work)."""
-        r = self.kernel.routing
-        k = self.kernel
-        self.tension[:] = self.motor_tension(model, data)
-        self.qfrc[:] = 0.0
-        cfg = self.config
+        r, k, cfg = self.kernel.routing, self.kernel, self.config
+        qpos, actuator_force, ten_length, ten_velocity, qfrc_passive = self._views
         self._fn(
-            data.qpos, r.seg_ball, r.seg_njnt, r.seg_qadr, r.seg_qref, r.seg_axes, r.seg_bpos, r.seg_bmat, r.seg_jpos,
-            r.seg_dofadr, r.piece_seg, r.piece_parent, r.piece_child, r.cable_start, r.cable_end, self.tension,
-            cfg.mu, cfg.presliding, cfg.base_hole, self.z, self.s_prev, self.initialised, k.seg_R, k.seg_w,
-            k.length, k.direction, k.grad, self.piece_tension, self.wrap, self.qfrc,
+            qpos, r.seg_ball, r.seg_njnt, r.seg_qadr, r.seg_qref, r.seg_axes, r.seg_bpos, r.seg_bmat, r.seg_jpos,
+            r.seg_dofadr, r.piece_seg, r.piece_parent, r.piece_child, r.cable_start, r.cable_end, r.tendon_ids,
+            self._act_ids, self._act_owner, actuator_force, self._ten_k, self._ten_b, self._ten_spring,
+            ten_length, ten_velocity, cfg.mu, cfg.presliding, cfg.base_hole, self.z, self.s_prev, self.initialised,
+            self.tension, k.seg_R, k.seg_w, k.length, k.direction, k.grad, self.piece_tension, self.wrap, qfrc_passive,
         )  # fmt: skip
-        data.qfrc_passive += self.qfrc
 
     def anchor_ratio(self) -> np.ndarray:
         """(C,) anchor / motor tension of each cable at the last evaluation (1: no loss)."""

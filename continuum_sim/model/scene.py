@@ -34,7 +34,7 @@ from dm_control import mjcf  # noqa: E402
 
 from ..configio import ConfigError, require_int, require_range  # noqa: E402
 from ..geometry import ArmGeometry  # noqa: E402
-from ..layout import TaskLayout  # noqa: E402
+from ..layout import ARMS, TaskLayout  # noqa: E402
 from . import tools as tools_mod  # noqa: E402
 from .arm import apply_simulation_options, arm_collision_bits, build_arm, kerf_collision_bits  # noqa: E402
 from .options import ModelOptions, model_geometry  # noqa: E402
@@ -43,7 +43,6 @@ from .tools import FOAM_PRIORITY, ToolOptions  # noqa: E402
 ArmBuilder = Callable[[ArmGeometry, ModelOptions, str, str], mjcf.RootElement]
 
 SCENE_MODEL = "dual_arm"
-ARMS = ("left", "right")
 PLATE_BODY = "plate"
 SAMPLE_BODY = "sample"
 SAMPLE_WELD = "sample_weld"

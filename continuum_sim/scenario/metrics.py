@@ -1,15 +1,22 @@
-"""Metrics of a run (SPEC §8) computed from its recorded time series.
+"""Metrics of a run (SPEC §8) computed from its recorded trajectory.
 
-Pure functions of the recorded arrays, so a run folder's ``trajectory.npz`` is enough
-to recompute every number in ``metrics.json``.
+Pure functions of the recorded arrays: ``compute_metrics(trajectory, plan, config)``
+needs nothing from the live simulation, so a run folder's ``trajectory.npz`` (with its
+``config.toml``, which gives the plan back) is enough to recompute every number in
+``metrics.json`` (``continuum-sim metrics RUN_DIR``).
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from ..toolpath import TaskPlan
+    from .config import ScenarioConfig
+    from .trajectory import Trajectory
 
 Array = NDArray[np.float64]
 
@@ -76,4 +83,57 @@ def per_stage(values: Array, stage: Array, stage_names: tuple[str, ...]) -> dict
         if np.any(mask):
             out[name] = error_stats(values[mask])
     out["all"] = error_stats(values)
+    return out
+
+
+SAMPLE_MOVED_M = 1e-3  # the welded sample moving this far on the plate counts as detached early
+HELD_DISTANCE_M = 0.05  # a held sample is within this of the gripper's tool centre …
+HELD_HEIGHT_M = 0.05  # … and lifted above this height (off the plate's level)
+
+
+def compute_metrics(trajectory: Trajectory, plan: TaskPlan, config: ScenarioConfig) -> dict[str, Any]:
+    """SPEC §8 metrics of a run, from its trajectory, its plan and its configuration only."""
+    from .trajectory import CONTACT_KINDS
+
+    tr = trajectory
+    stage = tr.stage.astype(int)
+    grinder, gripper = tr.arms[tr.tool_arm["grinder"]], tr.arms[tr.tool_arm["gripper"]]
+    out: dict[str, Any] = {"control": config.control.mode}
+    out["tip_error_mm"] = {
+        arm: per_stage(np.linalg.norm(a.tcp_pos - a.tcp_plan[:, :3, 3], axis=1), stage, tr.stage_names)
+        for arm, a in tr.arms.items()
+    }
+    cutting = plan.cutting[tr.plan_index.astype(int)]
+    grinder_err = np.linalg.norm(grinder.tcp_pos - grinder.tcp_plan[:, :3, 3], axis=1)
+    out["cutting_tip_error_mm"] = error_stats(grinder_err[cutting])
+    # Deviation across the planned cut, in the plate plane (the kerf's own line plus lead-in/out).
+    planned_cut = plan.tcp(tr.tool_arm["grinder"])[plan.cutting][:, :2, 3]
+    out["cut_path_deviation_mm"] = error_stats(polyline_distance(grinder.tcp_pos[cutting, :2], planned_cut))
+    axis_err = axis_angle_deg(grinder.tcp_mat[cutting, :, 2], np.array([0.0, 0.0, 1.0]))
+    out["spindle_axis_error_deg"] = {
+        "mean": float(axis_err.mean()) if axis_err.size else None,
+        "max": float(axis_err.max()) if axis_err.size else None,
+    }
+    out["min_arm_distance_m"] = float(tr.arm_distance.min())
+    forces = tr.contact_force
+    out["max_contact_force_n"] = {kind: float(forces[:, k].max()) for k, kind in enumerate(CONTACT_KINDS)}
+    out["arms_touched"] = bool(forces[:, CONTACT_KINDS.index("arm_arm")].max() > 0.0)
+    tension = np.concatenate([a.cable_tension for a in tr.arms.values()], axis=1)
+    out["max_cable_tension_n"] = float(tension.max())
+    out["min_cable_tension_n"] = float(tension.min())
+    out["cells_total"] = tr.n_cells
+    out["cells_remaining"] = int(np.count_nonzero(np.isnan(tr.cell_removal_times)))
+    out["sample_detached"] = tr.detach_time is not None
+    out["detach_time_s"] = tr.detach_time
+    moved = np.linalg.norm(tr.sample_rel_pos - tr.sample_rel_pos[0], axis=1) > SAMPLE_MOVED_M
+    out["detached_before_cut_complete"] = bool(np.any(moved & tr.sample_welded))
+    sample, tcp = tr.sample_pos[-1], gripper.tcp_pos[-1]
+    out["sample_held_at_end"] = bool(np.linalg.norm(sample - tcp) < HELD_DISTANCE_M and sample[2] > HELD_HEIGHT_M)
+    out["stages_run"] = list(tr.stages_run)
+    out["sim_seconds"] = float(tr.t[-1])
+    out["wall_seconds"] = float(tr.wall_seconds)
+    out["real_time_factor"] = float(tr.t[-1] / tr.wall_seconds) if tr.wall_seconds > 0 else None
+    out["wall_breakdown_s"] = dict(tr.wall_breakdown_s)
+    if tr.failure is not None:
+        out["diverged"] = tr.failure
     return out

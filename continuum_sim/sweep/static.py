@@ -37,6 +37,7 @@ from mujoco import rollout  # noqa: E402
 
 from .. import kinematics as kin  # noqa: E402
 from ..control import ArmController  # noqa: E402
+from ..model import names  # noqa: E402
 from ..model.arm import build_single_arm_model, section_links  # noqa: E402
 from ..model.options import ModelOptions, model_geometry  # noqa: E402
 from ..model.state import set_arm_configuration  # noqa: E402
@@ -123,7 +124,7 @@ def _joint_dofs(model: mujoco.MjModel, config: ScenarioConfig, options: ModelOpt
         ids = []
         for _ in range(section.n_segments):
             for suffix in suffixes:
-                name = f"arm/joint_{disk}{suffix}"
+                name = names.scoped(names.SINGLE_ARM, names.joint(disk, suffix.lstrip("_") or None))
                 jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
                 if jid < 0:
                     raise KeyError(f"joint {name} not found")
@@ -196,7 +197,7 @@ def prepare(model: mujoco.MjModel, config: ScenarioConfig, evaluation: Evaluatio
     geom = model_geometry(config.arm, options)
     q = np.radians(np.asarray(evaluation.q_deg, dtype=float))
     data = mujoco.MjData(model)
-    set_arm_configuration(model, data, geom, "arm", q, options.joint)
+    set_arm_configuration(model, data, geom, names.SINGLE_ARM, q, options.joint)
     initial = np.empty(mujoco.mj_stateSize(model, FULL))
     mujoco.mj_getState(model, data, initial, FULL)
 
@@ -205,7 +206,7 @@ def prepare(model: mujoco.MjModel, config: ScenarioConfig, evaluation: Evaluatio
     ctrl = _open_loop_ctrl(config, options, q, tool_length) if model.nu else np.zeros(0)
     g = np.array(model.opt.gravity)
     zero = np.zeros(3)
-    tip_site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "arm/tool_mount")
+    tip_site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, names.scoped(names.SINGLE_ARM, names.TOOL_MOUNT_SITE))
     tip_body = int(model.site_bodyid[tip_site])
     if isinstance(evaluation, GravitySag):
         spec = CTRL
@@ -214,7 +215,7 @@ def prepare(model: mujoco.MjModel, config: ScenarioConfig, evaluation: Evaluatio
         mujoco.mj_getState(model, data, vec, spec)
         inputs = (vec, vec)
         gravity = (zero, g)
-        point = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "arm/tcp")
+        point = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, names.scoped(names.SINGLE_ARM, names.TCP_SITE))
         target = kin.tool_centre_pose(geom, q, tool_length)[:3, 3]
         force = None
         settle = evaluation.settle_s

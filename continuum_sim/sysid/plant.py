@@ -27,6 +27,7 @@ choose_gl_backend()
 import mujoco
 
 from ..kinematics import straight_cable_lengths
+from ..model import names
 from ..model.options import model_geometry
 from ..scenario.config import ScenarioConfig
 
@@ -76,17 +77,17 @@ def build_replay_model(config: ScenarioConfig, arm: str, tool: str = "auto", gra
     if tool_model is not None:
         arm_model.find("site", "tool_mount").attach(tool_model)
     n_cables = geometry.n_cables
-    root.sensor.add("framepos", name="tcp_pos", objtype="site", objname=f"{arm}/tcp")
-    root.sensor.add("framequat", name="tcp_quat", objtype="site", objname=f"{arm}/tcp")
+    root.sensor.add("framepos", name="tcp_pos", objtype="site", objname=names.scoped(arm, names.TCP_SITE))
+    root.sensor.add("framequat", name="tcp_quat", objtype="site", objname=names.scoped(arm, names.TCP_SITE))
     for k in range(geometry.n_sections):
         for c in range(3):
-            root.sensor.add("actuatorfrc", name=f"force_{k}_{c}", actuator=f"{arm}/cable_{k}_{c}")
+            root.sensor.add("actuatorfrc", name=f"force_{k}_{c}", actuator=names.scoped(arm, names.cable(k, c)))
     model = mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
 
     def act(name: str) -> int:
         return int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name))
 
-    cables = np.array([act(f"{arm}/cable_{k}_{c}") for k in range(geometry.n_sections) for c in range(3)])
+    cables = np.array([act(names.scoped(arm, names.cable(k, c))) for k in range(geometry.n_sections) for c in range(3)])
     if np.any(cables < 0):
         raise ConfigError("model.tendons", "the replay needs the cable actuators (model.tendons = true)")
     return ReplayModel(model, arm, tool, cables, act(f"{arm}/{tools_mod.GRIPPER}/{tools_mod.GRIPPER_CABLE}"),

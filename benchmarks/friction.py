@@ -1,0 +1,278 @@
+"""Cable friction: per-step CPU cost, kernel compile cost, capstan check and the hysteresis loop.
+
+Prints JSON and writes ``docs/friction_hysteresis.png`` (``--plot``). Everything is CPU
+time (``time.process_time``), single process:
+
+* ``step``: the scenario's dual-arm scene (its model options), both arms bent and held by
+  pre-tensioned cables, ``mj_step`` with and without friction, interleaved repeats (min);
+* ``compile``: the first use of the numba kernels in a fresh process, with numba's cache
+  cold (a temporary cache directory) and warm;
+* ``capstan``: the proximal section pulled by a pure tension source to ~90°, anchor
+  tension from the statics (spring torque at the last joint over MuJoCo's moment arm)
+  against e^(−μθ);
+* ``hysteresis``: the same section under a staircase of motor tension up and down
+  (each level held to rest), bend vs tension for μ = 0 and the default μ.
+
+    python benchmarks/friction.py [--steps 500] [--repeats 3] [--plot docs/friction_hysteresis.png]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import numpy as np
+
+from continuum_sim.glbackend import choose_gl_backend
+
+choose_gl_backend()
+
+import mujoco
+
+from continuum_sim import cable_lengths
+from continuum_sim.geometry import ArmGeometry
+from continuum_sim.model import friction as fr
+from continuum_sim.model.arm import build_single_arm_model
+from continuum_sim.model.options import ModelOptions, model_geometry
+from continuum_sim.model.state import set_arm_configuration
+from continuum_sim.scenario.config import ScenarioConfig
+
+POSES = {"left": np.radians([30, 180, 25, 150, 20, 210]), "right": np.radians([30, 0, 25, 30, 20, 330])}
+PRETENSION = 10.0  # N
+CABLE = "arm/cable_0_0"
+
+
+# ----------------------------------------------------------------------------- step cost
+def _held_scene(config: ScenarioConfig) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    from continuum_sim.model.scene import build_scene
+
+    root = build_scene(config.arm, config.layout, config.model, config.scene)
+    model = mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
+    data = mujoco.MjData(model)
+    geom = model_geometry(config.arm, config.model)
+    for arm, q in POSES.items():
+        set_arm_configuration(model, data, geom, arm, q, config.model.joint)
+        ids = [model.actuator(n).id for n in geom.cable_names(arm)]
+        data.ctrl[ids] = cable_lengths(geom, q) - PRETENSION / model.actuator_gainprm[ids, 0]
+    mujoco.mj_forward(model, data)
+    return model, data
+
+
+def step_cost(steps: int, repeats: int) -> dict:
+    config = ScenarioConfig()  # the dataclass defaults (= the shipped scenario.toml when it is fresh)
+    model, base = _held_scene(config)
+    for _ in range(200):
+        mujoco.mj_step(model, base)
+    plain = mujoco.MjData(model)
+    rough = mujoco.MjData(model)
+    for d in (plain, rough):
+        mujoco.mj_copyData(d, model, base)
+    handle = fr.install_cable_friction(model, rough, fr.CableFrictionConfig())
+    times: dict[str, list[float]] = {"without": [], "with": []}
+    for _ in range(repeats):
+        for key, d in (("without", plain), ("with", rough)):
+            t0 = time.process_time()
+            for _ in range(steps):
+                mujoco.mj_step(model, d)
+            times[key].append((time.process_time() - t0) / steps)
+    handle.check()
+    # the callback's own work, timed directly (same state)
+    t0 = time.process_time()
+    for _ in range(steps):
+        handle.apply(model, rough)
+    callback = (time.process_time() - t0) / steps
+    without, with_ = min(times["without"]), min(times["with"])
+    return {
+        "scene": "scenario dual-arm scene, arms bent and held",
+        "joint": config.model.joint,
+        "timestep_s": model.opt.timestep,
+        "cables": len(handle.kernel.routing.cable_start),
+        "pieces": handle.kernel.routing.n_pieces,
+        "us_per_step_without": round(without * 1e6, 1),
+        "us_per_step_with": round(with_ * 1e6, 1),
+        "overhead_percent": round(100 * (with_ - without) / without, 1),
+        "callback_us": round(callback * 1e6, 1),
+        "anchor_ratio_range": [round(float(handle.anchor_ratio().min()), 4), round(float(handle.anchor_ratio().max()), 4)],
+    }
+
+
+def compile_cost() -> dict:
+    code = (
+        "import time;t=time.process_time();"
+        "from continuum_sim.model import friction as fr;import numpy as np;"
+        "k=fr.kernels();f=k['cable_pieces'];"
+        "import continuum_sim.model.friction as m;"
+        "fr.CableKernel.__init__;"
+        "from continuum_sim.model.arm import build_single_arm_model;from continuum_sim.geometry import ArmGeometry;"
+        "from continuum_sim.model.options import ModelOptions;import mujoco;"
+        "r=build_single_arm_model(ArmGeometry.default(),ModelOptions(joint='hinge_pair'));"
+        "mm=mujoco.MjModel.from_xml_string(r.to_xml_string(),r.get_assets());dd=mujoco.MjData(mm);"
+        "t=time.process_time();h=fr.install_cable_friction(mm,dd,fr.CableFrictionConfig());mujoco.mj_forward(mm,dd);h.check();"
+        "print(time.process_time()-t)"
+    )
+    out = {}
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        for label in ("cold_cache_s", "warm_cache_s"):
+            res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+            out[label] = round(float(res.stdout.strip().splitlines()[-1]), 3)
+    return out
+
+
+# ------------------------------------------------------------------------- section rig
+def rig() -> tuple[mujoco.MjModel, int, int]:
+    """The scenario's arm (hinge pairs, 4 ms), no gravity; cable_0_0 driven by a pure tension source."""
+    root = build_single_arm_model(ArmGeometry.default(), ModelOptions(joint="hinge_pair", timestep=0.004), gravity=False)
+    model = mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
+    act = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, CABLE)
+    ten = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, CABLE)
+    model.actuator_gainprm[act, :] = 0.0
+    model.actuator_gainprm[act, 0] = 1.0
+    model.actuator_biasprm[act, :] = 0.0
+    model.actuator_ctrlrange[act] = (-1000.0, 0.0)
+    model.actuator_forcerange[act] = (-1000.0, 0.0)
+    return model, act, ten
+
+
+def _bend(model, data, ten: int) -> float:
+    adr, num = model.tendon_adr[ten], model.tendon_num[ten]
+    body = model.site_bodyid[model.wrap_objid[adr + num - 1]]
+    return float(np.degrees(np.arccos(np.clip(data.xmat[body].reshape(3, 3)[2, 2], -1.0, 1.0))))
+
+
+def _anchor_tension(model, data, ten: int) -> float:
+    adr, num = model.tendon_adr[ten], model.tendon_num[ten]
+    body = model.site_bodyid[model.wrap_objid[adr + num - 1]]
+    first = model.jnt_dofadr[model.body_jntadr[body]]
+    dofs = np.arange(first, first + model.body_jntnum[body])
+    J = np.zeros((model.ntendon, model.nv))
+    mujoco.mju_sparse2dense(J, data.ten_J, model.ten_J_rownnz, model.ten_J_rowadr, model.ten_J_colind)
+    g = J[ten, dofs]
+    return float(data.qfrc_spring[dofs] @ g / (g @ g))
+
+
+def _wrap(model, data, ten: int) -> float:
+    adr, num = model.tendon_adr[ten], model.tendon_num[ten]
+    p = data.site_xpos[model.wrap_objid[adr : adr + num]]
+    last = (p[-1] - p[-2]) / np.linalg.norm(p[-1] - p[-2])
+    return float(np.arccos(last[2]))
+
+
+def _fresh(model, mu: float):
+    data = mujoco.MjData(model)
+    data.ctrl[:] = model.actuator_ctrlrange[:, 1]
+    return data, fr.install_cable_friction(model, data, fr.CableFrictionConfig(mu=mu))
+
+
+def _hold(model, data, act: int, start: float, end: float, ramp: int, hold: int) -> None:
+    for T in np.r_[np.linspace(start, end, ramp), np.full(hold, end)]:
+        data.ctrl[act] = -T
+        mujoco.mj_step(model, data)
+
+
+def capstan() -> list[dict]:
+    model, act, ten = rig()
+    rows = []
+    for mu in (0.0, 0.1, 0.15, 0.2):
+        T = 120.0
+        for _ in range(5):
+            data, handle = _fresh(model, mu)
+            _hold(model, data, act, 0.0, T, 250, 750)
+            mujoco.mj_forward(model, data)
+            wrap = _wrap(model, data, ten)
+            if abs(np.degrees(wrap) - 90.0) < 0.5:
+                break
+            T *= (np.pi / 2) / wrap
+        ratio = _anchor_tension(model, data, ten) / T
+        rows.append(
+            {
+                "mu": mu,
+                "motor_tension_n": round(T, 2),
+                "wrap_deg": round(np.degrees(wrap), 2),
+                "anchor_over_motor": round(ratio, 4),
+                "capstan_exp_minus_mu_theta": round(float(np.exp(-mu * wrap)), 4),
+                "error_percent": round(100 * (ratio / np.exp(-mu * wrap) - 1), 2),
+            }
+        )
+        handle.uninstall()
+    return rows
+
+
+def hysteresis(levels: int, hold: int) -> dict:
+    model, act, ten = rig()
+    top = 110.0
+    up = np.linspace(0.0, top, levels + 1)
+    path = np.r_[up, up[-2::-1]]
+    out = {}
+    for mu in (0.0, fr.DEFAULT_MU):
+        data, handle = _fresh(model, mu)
+        bends, prev = [], 0.0
+        for T in path:
+            _hold(model, data, act, prev, T, 25, hold)
+            prev = T
+            bends.append(_bend(model, data, ten))
+        out[mu] = (path, np.array(bends))
+        handle.uninstall()
+    return out
+
+
+def plot(loops: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from continuum_sim.configio import atomic_write_figure
+
+    fig, ax = plt.subplots(figsize=(6.0, 4.2))
+    for mu, (T, bend) in loops.items():
+        n = len(T) // 2
+        style = {"color": "0.5", "ls": "--"} if mu == 0 else {"color": "C3"}
+        ax.plot(bend[: n + 1], T[: n + 1], marker="^", ms=4, label=f"μ = {mu:g}, loading", **style)
+        if mu != 0:
+            ax.plot(bend[n:], T[n:], marker="v", ms=4, color="C0", label=f"μ = {mu:g}, unloading")
+    ax.set_xlabel("proximal section bend (deg)")
+    ax.set_ylabel("motor tension on cable_0_0 (N)")
+    ax.set_title("Cable friction: section bend vs motor tension (static levels)")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    atomic_write_figure(fig, path)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=500)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--levels", type=int, default=8)
+    parser.add_argument("--hold", type=int, default=300, help="steps each tension level is held (4 ms each)")
+    parser.add_argument("--plot", type=Path, default=None)
+    parser.add_argument("--skip", nargs="*", default=[], choices=["step", "compile", "capstan", "hysteresis"])
+    args = parser.parse_args(argv)
+    out: dict = {"default_mu": fr.DEFAULT_MU, "presliding_m": fr.DEFAULT_PRESLIDING, "load_average": os.getloadavg()}
+    if "compile" not in args.skip:
+        out["compile"] = compile_cost()
+    if "step" not in args.skip:
+        out["step"] = step_cost(args.steps, args.repeats)
+    if "capstan" not in args.skip:
+        out["capstan"] = capstan()
+    if "hysteresis" not in args.skip:
+        loops = hysteresis(args.levels, args.hold)
+        out["hysteresis"] = {
+            str(mu): {"tension_n": [round(t, 2) for t in T], "bend_deg": [round(b, 2) for b in bend]} for mu, (T, bend) in loops.items()
+        }
+        if args.plot is not None:
+            plot(loops, args.plot)
+    print(json.dumps(out, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
