@@ -92,4 +92,4 @@ def model_geometry(geometry: ArmGeometry, options: ModelOptions) -> ArmGeometry:
     try:
         return dataclasses.replace(geometry, sections=sections)
     except ConfigError as exc:
-        raise ConfigError("segments_per_section", f"{n} segments make the disks overlap ({exc})") from None
+        raise ConfigError("model.segments_per_section", f"{n} segments make the disks overlap ({exc})") from None
