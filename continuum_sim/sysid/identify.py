@@ -17,7 +17,6 @@ identifiable when JᵀJ is rank-deficient in it (relative singular value < 1e-8)
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import os
@@ -257,15 +256,45 @@ def _report(params: list[FitParameter], v0: Array, values: Array, r0: Array, r1:
     }
 
 
+def identified_overrides(result: FitResult, base: dict[str, Any] | None) -> dict[str, Any]:
+    """The base file's tables with the fitted values set: a file over the shipped defaults.
+
+    A path through a list (``arm.sections.1.…``) writes that whole list, as TOML arrays of
+    tables replace whole.
+    """
+    import copy
+
+    out: dict[str, Any] = copy.deepcopy(base) if base else {}
+    full = to_dict(result.config)
+    for p in result.params:
+        parts = p.path.split(".")
+        node, src = out, full
+        for i, part in enumerate(parts):
+            nxt = src[int(part)] if isinstance(src, list) else src[part]
+            if i == len(parts) - 1:
+                node[part] = nxt
+            elif isinstance(nxt, list):
+                node[part] = nxt
+                break
+            else:
+                node = node.setdefault(part, {})
+                src = nxt
+    return out
+
+
 def write_identify_folder(out: str | os.PathLike[str], result: FitResult, rec: Recording, base_toml: str | None) -> None:
     """DIR/identified.toml, DIR/report.json, DIR/plots/{fit_paths,residuals}.png."""
+    from ..configio import load_toml
+
     out = Path(out)
     (out / "plots").mkdir(parents=True, exist_ok=True)
-    lines = ["# Identified by `continuum-sim identify` (fitted to the recording below; see report.json).",
+    lines = ["# Identified by `continuum-sim identify`: the starting configuration with the fitted values",
+             "# (fitted to the recording below; report.json has their standard errors). Use it with --config.",
              f"# recording: {rec.info.source or '(unnamed)'}; {int(rec.measured.sum())} measured samples",
              *(f"# fitted {p}: {v!r}" for p, v in result.report["parameters"].items()),
-             f"# base configuration: {base_toml or 'shipped defaults'}", ""]
-    atomic_write_text(out / "identified.toml", "\n".join(lines) + dumps_toml(to_dict(result.config)))
+             f"# starting configuration: {base_toml or 'shipped defaults'}", ""]
+    base = load_toml(base_toml) if base_toml else None
+    atomic_write_text(out / "identified.toml", "\n".join(lines) + dumps_toml(identified_overrides(result, base)))
     atomic_write_text(out / "report.json", json.dumps(result.report, indent=2))
     r = result.report
     plot_paths(rec, {"before fit": result.before, "after fit": result.after}, out / "plots" / "fit_paths.png",
