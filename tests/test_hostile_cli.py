@@ -344,3 +344,32 @@ def test_deep_models_get_a_deeper_recursion_limit(monkeypatch, capsys):
     before = sys.getrecursionlimit()
     assert main(["fk", *["0"] * 6]) == 0
     assert seen["limit"] >= 10_000 and sys.getrecursionlimit() == before
+
+
+def test_large_grid_is_checked_quickly_and_still_catches_a_bad_combination():
+    import time
+
+    from continuum_sim.configio import ConfigError
+    from continuum_sim.sweep.spec import parse_spec
+
+    grid = {"model.stiffness_scale": {"start": 0.5, "stop": 2.0, "num": 1000}, "plan.cut_speed": {"start": 0.001, "stop": 0.01, "num": 100}}
+    start = time.process_time()
+    spec = parse_spec({"grid": grid, "evaluation": {"kind": "stage", "stage": "milling"}})
+    assert spec.n_variants == 100_000 and time.process_time() - start < 15.0  # was ~9 CPU minutes, one variant at a time
+    bad = {"model.segments_per_section": [10, 100], "plan.cut_speed": {"start": 0.001, "stop": 0.01, "num": 1500}}
+    with pytest.raises(ConfigError, match=r"model\.segments_per_section.*overlap.*variant 1500"):
+        parse_spec({"grid": bad, "evaluation": {"kind": "gravity_sag"}})
+
+
+@pytest.mark.parametrize("address, fragment", [("256.1.1.1:6379", "cannot"), ("localhost:1", "cannot reach"),
+                                               ("[::1]:99999", "host:port"), ("ray://:10001", "host:port")])
+def test_ray_address_probe_is_bounded(address, fragment):
+    import time
+
+    from continuum_sim.configio import ConfigError
+    from continuum_sim.sweep.backends import probe_address
+
+    start = time.monotonic()
+    with pytest.raises(ConfigError, match=fragment):
+        probe_address(address, timeout=2.0)
+    assert time.monotonic() - start < 10.0

@@ -154,6 +154,14 @@ def run_shared(spec: SweepSpec, variants: Sequence[Variant], workers: int, on_re
 
 
 # --------------------------------------------------------------------------- Ray
+def _resolve(host: str, port: int) -> Any:
+    """The first TCP address of ``host:port``, or the ``OSError`` resolving it raised."""
+    try:
+        return socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0]
+    except OSError as exc:
+        return exc
+
+
 CONNECT_TIMEOUT_S = 10.0  # how long the TCP probe of a Ray address may take
 
 
@@ -170,9 +178,22 @@ def probe_address(address: str, timeout: float | None = None) -> None:
     host, sep, port_text = target.rpartition(":")
     if not sep or not host or not port_text.isdigit() or not 0 < int(port_text) < 65536:
         raise ConfigError("--address", f"must be host:port, ray://host:port, auto or local (got {address[:80]!r})")
+    # Name resolution ignores socket timeouts: resolve in a helper thread and stop waiting after ``timeout``.
+    resolved: list[Any] = []
+    resolver = threading.Thread(
+        target=lambda: resolved.append(_resolve(host.strip("[]"), int(port_text))), daemon=True, name="resolve-ray-address"
+    )
+    resolver.start()
+    resolver.join(timeout)
+    if not resolved:
+        raise ConfigError("--address", f"cannot resolve {host[:80]!r} within {timeout:g} s")
+    if isinstance(resolved[0], OSError):
+        raise ConfigError("--address", f"cannot resolve {host[:80]!r} ({resolved[0].strerror or resolved[0]})")
+    family, kind, proto, _, sockaddr = resolved[0]
     try:
-        with socket.create_connection((host.strip("[]"), int(port_text)), timeout=timeout):
-            pass
+        with socket.socket(family, kind, proto) as sock:
+            sock.settimeout(timeout)
+            sock.connect(sockaddr)
     except OSError as exc:
         reason = "timed out" if isinstance(exc, TimeoutError) else (exc.strerror or type(exc).__name__)
         raise ConfigError(
