@@ -141,13 +141,15 @@ def cmd_identify(args: argparse.Namespace) -> int:
         raise ConfigError("--fit", "a path is given twice")
     if args.workers < 1:
         raise ConfigError("--workers", f"must be >= 1 (got {args.workers})")
+    if args.stride < 1:
+        raise ConfigError("--stride", f"must be >= 1 (got {args.stride})")
     if args.max_nfev < 1:
         raise ConfigError("--max-nfev", f"must be >= 1 (got {args.max_nfev})")
     if not (math.isfinite(args.orientation_weight) and args.orientation_weight >= 0):
         raise ConfigError("--orientation-weight", f"must be a number >= 0 (got {args.orientation_weight})")
     out = _out_dir(args.out)
     result = identify(config, rec, params, nthread=args.workers, orientation_weight=args.orientation_weight,
-                      max_nfev=args.max_nfev, progress=not args.quiet)
+                      max_nfev=args.max_nfev, progress=not args.quiet, stride=args.stride)
     write_identify_folder(out, result, rec, args.config)
     r = result.report
     print(json.dumps({
@@ -196,6 +198,7 @@ def add_commands(sub: Any) -> None:
     idp.add_argument("--workers", type=int, default=1, help="threads for the batched replays (default 1)")
     idp.add_argument("--max-nfev", type=int, default=30, help="least-squares iterations at most (default 30)")
     idp.add_argument("--orientation-weight", type=float, default=1.0, help="mm of residual per degree of orientation error")
+    idp.add_argument("--stride", type=int, default=1, help="fit on every N-th row (before/after figures use all rows)")
     idp.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_recording_options(idp)
     idp.set_defaults(func=cmd_identify)

@@ -125,6 +125,31 @@ def import_ftdcr(path: str | os.PathLike[str], pull_file: str | os.PathLike[str]
     order = servo_order(labels, servo)
     delta = -s[:, order] / 1000.0
     pos = (tip - np.array([neutral[0], neutral[1], 0.0])) / 1000.0 + np.asarray(mount)
-    info = RecordingInfo(mode="quasi_static", settle_s=0.5, gravity=False, tool="none", align="offset",
+    info = RecordingInfo(mode="quasi_static", settle_s=0.2, gravity=False, tool="none", align="offset",
                          source=f"OpenCR-MuJoCo FTDCR v4 ({Path(path).name}, MIT), imported by continuum_sim.sysid.ftdcr")
     return Recording(arm, t - t[0], delta, pos, None, None, None, None, labels, info)
+
+
+FILES = ("tendon_pull", "train", "val")
+
+
+def convert_all(folder: str | os.PathLike[str] = "validation/opencr_ftdcr_v4") -> list[Path]:
+    """Write ``<name>.recording.csv`` beside every upstream file (neutral from the pull file)."""
+    from .data import write_recording
+
+    folder = Path(folder)
+    pull = folder / "ftdcr_v4_tendon_pull.csv"
+    out = []
+    for name in FILES:
+        rec = import_ftdcr(folder / f"ftdcr_v4_{name}.csv", pull)
+        out.append(write_recording(rec, folder / f"ftdcr_v4_{name}.recording.csv",
+                                   ("FTDCR v4 motion capture (OpenCR-MuJoCo, MIT licence: LICENSE-MIT-opencr-mujoco.txt),",
+                                    "converted by `python -m continuum_sim.sysid.ftdcr` (docs/sysid.md)")))
+    return out
+
+
+if __name__ == "__main__":
+    import sys
+
+    for written in convert_all(sys.argv[1] if len(sys.argv) > 1 else "validation/opencr_ftdcr_v4"):
+        print(f"wrote {written}")
