@@ -22,6 +22,7 @@ import numpy as np
 
 from .. import kinematics as kin
 from ..configio import atomic_write_text
+from ..limits import check_run_length, check_scenario
 from ..controllers import ControlContext, Controller, load_controller
 from ..model.handles import SceneHandles
 from ..model.options import model_geometry
@@ -56,9 +57,11 @@ def run_scenario(
     """
     clock = _Clock()
     out = None if out_dir is None else Path(out_dir)
+    check_scenario(config)  # refused before planning: arm x segments overlap, MuJoCo steps per control tick
     plan = plan_task(model_geometry(config.arm, config.model), config.layout, config.plan)
     clock.lap("plan")
     stages_run, end_time = plan_extent(plan, stages)
+    check_run_length(config, end_time)  # and before building or writing anything: steps per run
     root, model = build_scene_model(config)
     if out is not None:
         start_run_dir(out, config, root)
@@ -163,9 +166,13 @@ def start_run_dir(out_dir: Path, config: ScenarioConfig, root: Any) -> None:
 
 def write_run(out_dir: Path, trajectory: Trajectory, metrics: dict[str, Any], plan: TaskPlan,
               config: ScenarioConfig) -> None:
-    """After simulating: ``trajectory.npz``, ``plots/`` and ``metrics.json``."""
+    """After simulating: ``metrics.json``, ``trajectory.npz``, ``plots/``, each atomically.
+
+    Small before large: on a full disk the 3 kB metrics survive the MB-sized trajectory
+    that could not be written (docs/errors.md).
+    """
     from . import plots
 
+    atomic_write_text(out_dir / "metrics.json", json.dumps(metrics, indent=2, sort_keys=True))
     trajectory.save(out_dir / "trajectory.npz")
     plots.write_run_plots(out_dir / "plots", trajectory.series(), plan, config)
-    atomic_write_text(out_dir / "metrics.json", json.dumps(metrics, indent=2, sort_keys=True))
