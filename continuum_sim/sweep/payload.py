@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..glbackend import choose_gl_backend
+from ..model import names
 from ..model.arm import arm_collision_bits
 from ..model.options import model_geometry
 
@@ -56,7 +57,7 @@ def tool_payload(config, tool: str) -> Payload:
         plate.kerf_width,
         plate.contact_solref,
         plate.contact_solimp,
-        arm_collision_bits("arm"),
+        arm_collision_bits(names.SINGLE_ARM),
         pad_tilt_deg=config.layout.grasp.tilt_deg,
     )
     root = mjcf.RootElement(model="payload")
@@ -82,8 +83,9 @@ def add_payload(root, arm: str, payload: Payload) -> None:
     """Fix ``payload`` as a body on ``arm``'s tip disk (the body that carries its ``tool_mount`` site)."""
     if payload.mass <= 0.0:
         return
-    mount = root.find("site", f"{arm}/tool_mount")
+    site = names.scoped(arm, names.TOOL_MOUNT_SITE)
+    mount = root.find("site", site)
     if mount is None:
-        raise ValueError(f"model has no {arm}/tool_mount site for the {payload.tool} payload")
+        raise ValueError(f"model has no {site} site for the {payload.tool} payload")
     body = mount.parent.add("body", name=PAYLOAD_BODY, pos=mount.pos)
     body.add("inertial", pos=payload.com, mass=payload.mass, fullinertia=payload.inertia)

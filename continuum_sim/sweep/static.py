@@ -80,13 +80,13 @@ def build_model(config: ScenarioConfig, evaluation: Evaluation) -> mujoco.MjMode
     """The variant's own single-arm model carrying its tool as a payload: PyMJCF build and compile."""
     tool = tool_of(evaluation)
     root = build_single_arm_model(config.arm, model_options(config, evaluation), tool)
-    add_payload(root, "arm", tool_payload(config, tool))
+    add_payload(root, names.SINGLE_ARM, tool_payload(config, tool))
     return mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
 
 
 def payload_mass(model: mujoco.MjModel) -> float:
     """Mass (kg) of the tool payload the model carries (0 without one)."""
-    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"arm/{PAYLOAD_BODY}")
+    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, names.scoped(names.SINGLE_ARM, PAYLOAD_BODY))
     return float(model.body_mass[body]) if body >= 0 else 0.0
 
 
