@@ -142,6 +142,28 @@ def rig() -> tuple[mujoco.MjModel, int, int]:
     return model, act, ten
 
 
+def tension_for_bend(model, ten: int, bend: float) -> float:
+    """Frictionless statics estimate of the motor tension bending the section by ``bend`` (rad).
+
+    Each of the n joints turns bend/n against its flexure spring k, the cable on the hole
+    radius r: T ≈ k·(bend/n)/r. A starting point only; the results are measured.
+    """
+    adr, num = model.tendon_adr[ten], model.tendon_num[ten]
+    first_disk = model.site_bodyid[model.wrap_objid[adr + 1]]
+    j = model.body_jntadr[first_disk]
+    k = float(np.max(model.jnt_stiffness[j : j + model.body_jntnum[first_disk]]))
+    r = float(np.linalg.norm(model.site_pos[model.wrap_objid[adr]][:2]))
+    return k * (bend / (num - 1)) / r
+
+
+def _settle(model, data, act: int, T: float, max_steps: int = 5000) -> None:
+    """Hold the motor tension until the arm is at rest (|qvel| < 1e-4 rad/s)."""
+    for _ in range(max_steps // 250):
+        _hold(model, data, act, T, T, 0, 250)
+        if np.abs(data.qvel).max() < 1e-4:
+            return
+
+
 def _bend(model, data, ten: int) -> float:
     adr, num = model.tendon_adr[ten], model.tendon_num[ten]
     body = model.site_bodyid[model.wrap_objid[adr + num - 1]]
@@ -182,10 +204,11 @@ def capstan() -> list[dict]:
     model, act, ten = rig()
     rows = []
     for mu in (0.0, 0.1, 0.15, 0.2):
-        T = 120.0
+        T = tension_for_bend(model, ten, np.pi / 2)
         for _ in range(5):
             data, handle = _fresh(model, mu)
-            _hold(model, data, act, 0.0, T, 250, 750)
+            _hold(model, data, act, 0.0, T, 250, 0)
+            _settle(model, data, act, T)
             mujoco.mj_forward(model, data)
             wrap = _wrap(model, data, ten)
             if abs(np.degrees(wrap) - 90.0) < 0.5:
@@ -198,6 +221,7 @@ def capstan() -> list[dict]:
                 "motor_tension_n": round(T, 2),
                 "wrap_deg": round(np.degrees(wrap), 2),
                 "anchor_over_motor": round(ratio, 4),
+                "max_qvel_at_measurement": float(np.abs(data.qvel).max()),
                 "capstan_exp_minus_mu_theta": round(float(np.exp(-mu * wrap)), 4),
                 "error_percent": round(100 * (ratio / np.exp(-mu * wrap) - 1), 2),
             }
@@ -208,7 +232,7 @@ def capstan() -> list[dict]:
 
 def hysteresis(levels: int, hold: int) -> dict:
     model, act, ten = rig()
-    top = 110.0
+    top = tension_for_bend(model, ten, np.radians(85.0))
     up = np.linspace(0.0, top, levels + 1)
     path = np.r_[up, up[-2::-1]]
     out = {}
@@ -216,7 +240,8 @@ def hysteresis(levels: int, hold: int) -> dict:
         data, handle = _fresh(model, mu)
         bends, prev = [], 0.0
         for T in path:
-            _hold(model, data, act, prev, T, 25, hold)
+            _hold(model, data, act, prev, T, 25, 0)
+            _settle(model, data, act, T, hold)
             prev = T
             bends.append(_bend(model, data, ten))
         out[mu] = (path, np.array(bends))
@@ -252,7 +277,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--steps", type=int, default=500)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--levels", type=int, default=8)
-    parser.add_argument("--hold", type=int, default=300, help="steps each tension level is held (4 ms each)")
+    parser.add_argument("--hold", type=int, default=2000, help="most steps a tension level is held to rest (4 ms each)")
     parser.add_argument("--plot", type=Path, default=None)
     parser.add_argument("--skip", nargs="*", default=[], choices=["step", "compile", "capstan", "hysteresis"])
     args = parser.parse_args(argv)
