@@ -75,7 +75,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
     config = ScenarioConfig.default() if args.config is None else ScenarioConfig.from_toml(args.config)
     if args.control is not None:
         config = merged(config, {"control": {"mode": args.control}})
+    if args.controller in ("open", "closed"):
+        config = merged(config, {"control": {"mode": args.controller, "controller": ""}})
+    elif args.controller is not None:
+        config = merged(config, {"control": {"controller": args.controller}})
     # Everything that can be refused is refused before the folder is touched.
+    from .controllers import controller_spec, load_controller
+
+    controller = load_controller(controller_spec(config))  # a broken controller: one line, exit 2
     out = check_output_dir(args.out, create=False)
     check_scenario(config)
     if args.video:
@@ -86,7 +93,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from .scenario.runner import SimulationDiverged, run_scenario
 
     try:
-        metrics = run_scenario(config, out, video=args.video, progress=not args.quiet)
+        metrics = run_scenario(config, out, video=args.video, progress=not args.quiet, controller=controller)
     except SimulationDiverged as exc:
         finish(out, "diverged", str(exc))
         print(f"continuum-sim run: error: {exc}", file=sys.stderr)
@@ -447,6 +454,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", default="runs/default", help="run folder (default: runs/default)")
     run.add_argument("--video", action="store_true", help="render an MP4 off-screen (EGL)")
     run.add_argument("--control", choices=["open", "closed"], help="open = the paper's method, closed = ours (default: config)")
+    run.add_argument("--controller", metavar="MODULE:CLASS",
+                     help="your own controller class (continuum_sim.controllers.Controller protocol; "
+                          "sets control.controller), or open/closed")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.add_argument("--overwrite", action="store_true", help="replace the run already in --out (cleared first)")
     run.set_defaults(func=_cmd_run)

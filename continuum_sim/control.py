@@ -16,6 +16,7 @@ state is read from ``MjData`` each control tick.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from typing import Literal
 
@@ -29,12 +30,17 @@ from .geometry import ArmGeometry
 
 Array = NDArray[np.float64]
 
+_CONTROLLER_SPEC = re.compile(r"[A-Za-z_][\w.]*:[A-Za-z_]\w*")
+
 
 @dataclass(frozen=True)
 class ControlConfig:
     """Controller settings; ``mode`` switches between the paper's open loop and ours."""
 
     mode: Literal["open", "closed"] = "closed"
+    # "" = the built-in controller named by ``mode``; "package.module:ClassName" = your own class
+    # (``continuum_sim.controllers.Controller`` protocol; checked when the run starts).
+    controller: str = ""
     rate_hz: float = 125.0  # control (set-point) update rate (rounded to whole steps); the motor loops run every step
     pretension: float = 10.0  # N, tension every cable keeps at the planned shape
     outer_gain: float = 4.0  # 1/s, integral gain of the task-space correction
@@ -52,6 +58,10 @@ class ControlConfig:
     def __post_init__(self) -> None:
         if self.mode not in ("open", "closed"):
             raise ConfigError("mode", f"must be 'open' or 'closed' (got {self.mode!r})")
+        if self.controller and not _CONTROLLER_SPEC.fullmatch(self.controller):
+            raise ConfigError(
+                "controller", f"must be empty or 'package.module:ClassName' (got {self.controller[:80]!r})"
+            )
         require_range("rate_hz", self.rate_hz, 1.0, 10000.0, low_inclusive=True)
         require_range("pretension", self.pretension, 0.0, 1000.0, low_inclusive=True)
         require_range("outer_gain", self.outer_gain, 0.0, 1000.0, low_inclusive=True)

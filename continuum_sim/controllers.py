@@ -20,12 +20,15 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import os
+import sys
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
+from .configio import ConfigError
 from .geometry import ArmGeometry
 from .layout import TaskLayout
 
@@ -190,33 +193,55 @@ class ClosedLoopController(PlanTrackingController):
 BUILTIN = {"open": OpenLoopController, "closed": ClosedLoopController}
 
 
-class ControllerError(ValueError):
+class ControllerError(ConfigError):
     """A controller spec that does not import or does not satisfy the protocol (one-line message)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__("control.controller", message)
+
+
+def controller_spec(config: ScenarioConfig) -> str:
+    """The controller a configuration asks for: ``control.controller`` if set, else ``control.mode``."""
+    return config.control.controller or config.control.mode
 
 
 def load_controller(spec: str) -> Controller:
     """A controller instance from ``"open"``, ``"closed"`` or ``"package.module:ClassName"``.
 
-    The class is called with no arguments and must have ``reset(context)`` and
-    ``command(state)``. Raises ``ControllerError`` with one line naming what is wrong.
+    The module is imported with the current directory on ``sys.path`` (so a file of your own
+    next to where you run works: ``my_controller:MyController``); the class is called with no
+    arguments and must have ``reset(context)`` and ``command(state)``. Raises
+    ``ControllerError`` (a ``ConfigError``: the CLI exits 2) with one line naming what is wrong.
     """
     if spec in BUILTIN:
         return BUILTIN[spec]()
     module_name, sep, class_name = spec.partition(":")
     if not sep or not module_name or not class_name:
-        raise ControllerError(f"controller: expected 'open', 'closed' or 'module:Class' (got {spec!r})")
+        raise ControllerError(f"expected 'open', 'closed' or 'module:Class' (got {spec[:80]!r})")
+    cwd = os.getcwd()
+    added = cwd not in sys.path
+    if added:
+        sys.path.insert(0, cwd)
     try:
         module = importlib.import_module(module_name)
-    except Exception as exc:  # noqa: BLE001 - any import failure is the user's module's, reported in one line
-        raise ControllerError(f"controller: cannot import module {module_name!r} ({type(exc).__name__}: {exc})") from None
+    except Exception as exc:  # noqa: BLE001 - any failure inside the user's module is reported in one line
+        raise ControllerError(f"cannot import {module_name!r} ({_one_line(exc)})") from None
+    finally:
+        if added:
+            sys.path.remove(cwd)
     cls = getattr(module, class_name, None)
     if cls is None:
-        raise ControllerError(f"controller: module {module_name!r} has no {class_name!r}")
+        raise ControllerError(f"module {module_name!r} has no {class_name!r}")
     try:
         instance = cls()
     except Exception as exc:  # noqa: BLE001
-        raise ControllerError(f"controller: {spec} could not be created with no arguments ({type(exc).__name__}: {exc})") from None
+        raise ControllerError(f"{spec} cannot be created with no arguments ({_one_line(exc)})") from None
     missing = [m for m in ("reset", "command") if not callable(getattr(instance, m, None))]
     if missing:
-        raise ControllerError(f"controller: {spec} does not satisfy the protocol (no {' or '.join(missing)} method)")
+        raise ControllerError(f"{spec} does not satisfy the Controller protocol (no {' and no '.join(missing)} method)")
     return instance
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text[:120]}" if text else type(exc).__name__

@@ -98,7 +98,7 @@ def compute_metrics(trajectory: Trajectory, plan: TaskPlan, config: ScenarioConf
     tr = trajectory
     stage = tr.stage.astype(int)
     grinder, gripper = tr.arms[tr.tool_arm["grinder"]], tr.arms[tr.tool_arm["gripper"]]
-    out: dict[str, Any] = {"control": config.control.mode}
+    out: dict[str, Any] = {"control": config.control.controller or config.control.mode}
     out["tip_error_mm"] = {
         arm: per_stage(np.linalg.norm(a.tcp_pos - a.tcp_plan[:, :3, 3], axis=1), stage, tr.stage_names)
         for arm, a in tr.arms.items()

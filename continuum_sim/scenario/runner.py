@@ -23,7 +23,7 @@ import numpy as np
 from .. import kinematics as kin
 from ..configio import atomic_write_text
 from ..limits import check_run_length, check_scenario
-from ..controllers import ControlContext, Controller, load_controller
+from ..controllers import ControlContext, Controller, controller_spec, load_controller
 from ..model.handles import SceneHandles
 from ..model.options import model_geometry
 from ..model.state import set_arm_configuration
@@ -65,7 +65,7 @@ def run_scenario(
     root, model = build_scene_model(config)
     if out is not None:
         start_run_dir(out, config, root)
-    sim = make_simulation(config, plan, model, controller or load_controller(config.control.mode))
+    sim = make_simulation(config, plan, model, controller or load_controller(controller_spec(config)))
     cutter = CutterObserver(sim)
     recorder = Recorder(round(1.0 / (config.simulation.record_hz * sim.control_period)), cutter)
     hooks: list[Observer] = [cutter, recorder, *observers, HealthCheck()]
