@@ -1,0 +1,75 @@
+"""Segment stiffness per section: analytic model vs the independent FE model, and what it takes to bend 90°.
+
+Prints Markdown tables for docs/model.md:
+
+    python scripts/segment_stiffness_table.py
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from continuum_sim.geometry import ArmGeometry  # noqa: E402
+from continuum_sim.model.stiffness import (  # noqa: E402
+    bend_tension,
+    leaf_peak_strain,
+    section_bending_rigidity,
+    segment_stiffness,
+    strain_limited_geometry,
+    strain_limited_leaf_radius,
+)
+from continuum_sim.validation.fe_segment import LeafSection, SegmentFE  # noqa: E402
+
+NAMES = ("proximal", "middle", "distal")
+
+
+def _with_radius(geometry: ArmGeometry, radius: float | None) -> ArmGeometry:
+    if radius is None:
+        return geometry
+    return dataclasses.replace(geometry, sections=tuple(dataclasses.replace(s, leaf_radius=radius) for s in geometry.sections))
+
+
+def fe(geometry: ArmGeometry, k: int):
+    s = geometry.sections[k]
+    leaf = LeafSection(s.hinge_width, s.hinge_thickness, geometry.material.youngs_modulus, geometry.material.poisson_ratio)
+    return SegmentFE(leaf, s.leaf_length(geometry.disk_thickness), s.leaf_radius, s.leaf_angles_deg, joint="ball").stiffness()
+
+
+def main() -> int:
+    base = dataclasses.replace(ArmGeometry(), central_joint="ball")
+    print("| layout | section | leaf r (mm) | K_x analytic | K_x FE | K_y analytic | K_y FE | K_twist analytic | K_twist FE | max dev |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    layouts = {"on axis (r = 0)": _with_radius(base, 0.0), "strain-limited": strain_limited_geometry(base)}
+    layouts["r = 8 mm"] = _with_radius(base, 0.008)
+    layouts["at cable radius (15 mm)"] = _with_radius(base, 0.015)
+    for name, geometry in layouts.items():
+        for k, s in enumerate(geometry.sections):
+            a = segment_stiffness(geometry, s)
+            f = fe(geometry, k)
+            dev = max(abs(a[i] / f[i, i] - 1.0) for i in range(3))
+            print(
+                f"| {name} | {NAMES[k]} | {s.leaf_radius * 1e3:.1f} | {a[0]:.4g} | {f[0, 0]:.4g} | {a[1]:.4g} | {f[1, 1]:.4g} "
+                f"| {a[2]:.4g} | {f[2, 2]:.4g} | {100 * dev:.2f} % |"
+            )
+    print()
+    print("| section | r_max (mm) | leaf r (mm) | peak strain at 90° | K_bend (N·m/rad) | EI_sec (N·m²) | K_twist ball (N·m/rad) | T to hold 90° (N) | worst direction (N) |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for name, geometry in (("today (r = 0)", _with_radius(base, 0.0)), ("strain-limited", strain_limited_geometry(base))):
+        for k, s in enumerate(geometry.sections):
+            kx, _, kz = segment_stiffness(geometry, s)
+            t = bend_tension(geometry, k)
+            print(
+                f"| {name}: {NAMES[k]} | {strain_limited_leaf_radius(geometry, s) * 1e3:.2f} | {s.leaf_radius * 1e3:.1f} "
+                f"| {100 * leaf_peak_strain(geometry, s):.2f} % | {kx:.4g} | {section_bending_rigidity(geometry, s):.4g} "
+                f"| {kz:.4g} | {t:.1f} | {t / math.cos(math.radians(30)):.1f} |"
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
