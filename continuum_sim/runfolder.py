@@ -93,10 +93,13 @@ def read_state(out: Path) -> str:
             return "incomplete"
         return "running" if pid > 0 and pid != os.getpid() and _pid_alive(pid) else "incomplete"
     try:
-        status = json.loads((out / "metrics.json").read_text()).get("status")
+        metrics = json.loads((out / "metrics.json").read_text())
+        status = metrics.get("status")
     except (OSError, ValueError, AttributeError):
         return "unknown"
-    return status if status in STATES else "complete"  # runs written before states existed
+    if status in STATES:
+        return status
+    return "diverged" if metrics.get("diverged") else "complete"  # written by run_scenario outside the CLI
 
 
 def finish(out: Path, status: str, reason: str | None = None) -> None:
