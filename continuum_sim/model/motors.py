@@ -204,3 +204,33 @@ def arm_motor_bank(model, actuators: Array, tendons: Array, geometry: ArmGeometr
     ea = np.full(n, rope_axial_stiffness(options))
     lead = np.full(n, options.cable_lead_length)
     return MotorBank(model, actuators, tendons, arm_motor_ratings(options), stiffness_ea=ea, lead=lead)
+
+
+class MotorDrive:
+    """The run's actuation with motors (``scenario.simulate.Simulation.actuate``).
+
+    The controller's commands are the motors' set-points: each arm's cable lengths and
+    the gripper cable go through their motor banks (elastic model: PI encoder loops with
+    speed and force limits; lumped: straight to the actuators, as before), the spindle
+    speed to its own speed loop unchanged.
+    """
+
+    def __init__(self, model, handles, geometry: ArmGeometry, options: ModelOptions, tools) -> None:
+        self.banks = {
+            arm: arm_motor_bank(model, handles.cable_actuators[arm], handles.cable_tendons[arm], geometry, options)
+            for arm in handles.arms
+        }
+        grip = int(handles.gripper_actuator)
+        ratings = MotorRatings(tools.gripper_cable_speed, tools.gripper_max_force, options.motor_kp, options.motor_ki)
+        self.gripper = MotorBank(
+            model, [grip], [int(model.actuator_trnid[grip, 0])], ratings, ideal=options.cable_model == "lumped"
+        )
+        self.spindle = int(handles.spindle_actuator)
+
+    def __call__(self, sim, commands) -> None:
+        dt = 0.0 if sim.tick < 0 else sim.control_period
+        data = sim.data
+        for arm, bank in self.banks.items():
+            bank.command(data, commands.cable_lengths[arm], dt)
+        self.gripper.command(data, np.array([commands.gripper_cable], dtype=float), dt)
+        data.ctrl[self.spindle] = commands.spindle_speed
