@@ -461,6 +461,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--overwrite", action="store_true", help="replace the run already in --out (cleared first)")
     run.set_defaults(func=_cmd_run)
 
+    from .validation.report import add_validate_parser  # `validate`: every reference check, one report
+
+    add_validate_parser(sub)
+
     view = sub.add_parser("view", help="open the scene in MuJoCo's interactive viewer (needs a display)")
     view.add_argument("--config", help="scenario TOML file")
     view.set_defaults(func=_cmd_view)
