@@ -121,6 +121,29 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_metrics(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    run_dir = Path(args.run_dir)
+    for name in ("config.toml", "trajectory.npz"):
+        if not (run_dir / name).is_file():
+            raise UsageError(f"RUN_DIR: {run_dir} has no {name} (not a run folder, or the run did not finish)")
+    from .configio import atomic_write_text
+    from .scenario.runner import metrics_text, recompute_metrics
+
+    text = metrics_text(recompute_metrics(run_dir))
+    written = run_dir / "metrics.json"
+    if args.write:
+        atomic_write_text(written, text)
+        print(f"wrote {written}")
+        return 0
+    print(text)
+    if written.exists() and written.read_text() != text:
+        print(f"continuum-sim metrics: {written} differs from the recomputed metrics", file=sys.stderr)
+        return EXIT_NEGATIVE
+    return 0
+
+
 def _cmd_view(args: argparse.Namespace) -> int:
     import os
 
@@ -460,6 +483,11 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.add_argument("--overwrite", action="store_true", help="replace the run already in --out (cleared first)")
     run.set_defaults(func=_cmd_run)
+
+    metrics = sub.add_parser("metrics", help="recompute a run folder's metrics.json from its trajectory.npz and config.toml")
+    metrics.add_argument("run_dir", metavar="RUN_DIR", help="a run folder written by `continuum-sim run`")
+    metrics.add_argument("--write", action="store_true", help="rewrite RUN_DIR/metrics.json instead of printing")
+    metrics.set_defaults(func=_cmd_metrics)
 
     from .validation.report import add_validate_parser  # `validate`: every reference check, one report
 

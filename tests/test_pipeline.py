@@ -68,8 +68,13 @@ class _Counter(Observer):
         self.calls["close"] += 1
 
 
+_PLANS: dict = {}
+
+
 def _simulation(config):
-    plan = plan_task(model_geometry(config.arm, config.model), config.layout, config.plan)
+    if id(config) not in _PLANS:
+        _PLANS[id(config)] = plan_task(model_geometry(config.arm, config.model), config.layout, config.plan)
+    plan = _PLANS[id(config)]
     _, model = build_scene_model(config)
     return make_simulation(config, plan, model, PlanTrackingController())
 
@@ -111,3 +116,31 @@ def test_a_custom_controller_drives_the_run():
     metrics = run_scenario(ScenarioConfig.default(), None, stages=STAGES, controller=_Frozen())
     assert metrics["stages_run"] == list(STAGES)
     assert np.isfinite(metrics["tip_error_mm"]["left"]["all"]["mean"])
+
+
+def test_metrics_command_reproduces_metrics_json(short_run, capsys):
+    from continuum_sim.cli import main
+
+    out, _, _ = short_run
+    assert main(["metrics", str(out)]) == 0
+    assert capsys.readouterr().out == (out / "metrics.json").read_text() + "\n"
+    assert main(["metrics", str(out / "plots")]) == 2  # not a run folder: one line, exit 2
+    assert "has no config.toml" in capsys.readouterr().err
+
+
+def test_seed_drives_the_sensor_noise_and_nothing_else():
+    from continuum_sim.scenario.config import merged
+
+    base = ScenarioConfig.default()
+    plan = plan_task(model_geometry(base.arm, base.model), base.layout, base.plan)
+
+    def qpos(seed: int, noise: float) -> bytes:
+        config = merged(base, {"simulation": {"seed": seed, "tcp_noise_m": noise}})
+        _, model = build_scene_model(config)
+        sim = make_simulation(config, plan, model, PlanTrackingController())
+        simulate(sim, 40, [])
+        return sim.data.qpos.tobytes()
+
+    assert qpos(0, 0.0) == qpos(7, 0.0)  # no noise: the seed has nothing to draw
+    noisy = qpos(0, 2e-4)
+    assert noisy == qpos(0, 2e-4) and noisy != qpos(7, 2e-4) and noisy != qpos(0, 0.0)

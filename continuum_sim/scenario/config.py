@@ -44,7 +44,10 @@ def _scenario_model_options() -> ModelOptions:
 class SimulationConfig:
     """How a run is simulated and recorded."""
 
-    seed: int = 0
+    seed: int = 0  # seeds the sensor noise below (no effect while it is 0)
+    # Gaussian noise (standard deviation, m, per axis) on the tool-centre positions the controller
+    # measures (*assumed* 0: the paper's robot has no tool-pose sensor; set it to study robustness).
+    tcp_noise_m: float = 0.0
     record_hz: float = 62.5  # time-series sampling rate (rounded to whole control ticks)
     video_fps: float = 20.0
     video_shadows: bool = False  # shadows and MSAA triple the frame time under software GL
@@ -54,6 +57,7 @@ class SimulationConfig:
 
     def __post_init__(self) -> None:
         require_int("seed", self.seed, 0)
+        require_range("tcp_noise_m", self.tcp_noise_m, 0.0, 0.1, low_inclusive=True)
         require_range("record_hz", self.record_hz, 1.0, 1000.0, low_inclusive=True)
         require_range("video_fps", self.video_fps, 1.0, 120.0, low_inclusive=True)
         require_int("video_width", self.video_width, 16, 4096)

@@ -30,7 +30,9 @@ from ..model.state import set_arm_configuration
 from ..toolpath import TaskPlan, plan_task
 from . import metrics as met
 from .config import ScenarioConfig
-from .simulate import CutterObserver, HealthCheck, Observer, ProgressObserver, Recorder, Simulation, VideoObserver, simulate
+from .simulate import (
+    CutterObserver, HealthCheck, NoisyMeasurement, Observer, ProgressObserver, Recorder, Simulation, VideoObserver, simulate,
+)
 from .trajectory import ArmTrajectory, Trajectory
 
 
@@ -132,7 +134,10 @@ def make_simulation(config: ScenarioConfig, plan: TaskPlan, model: mujoco.MjMode
     control_every = max(1, int(round(1.0 / (config.control.rate_hz * model.opt.timestep))))
     context = ControlContext(plan, geometry, config.layout, config, handles.arms, dict(handles.tool_arm),
                              control_every * model.opt.timestep)
-    return Simulation(model, data, handles, plan, controller, context, control_every)
+    sim = Simulation(model, data, handles, plan, controller, context, control_every)
+    if config.simulation.tcp_noise_m > 0.0:
+        sim.measure = NoisyMeasurement(config.simulation.tcp_noise_m, config.simulation.seed)
+    return sim
 
 
 def make_trajectory(series: dict[str, np.ndarray], handles: SceneHandles, plan: TaskPlan, cutter: CutterObserver,
@@ -155,6 +160,31 @@ def make_trajectory(series: dict[str, np.ndarray], handles: SceneHandles, plan: 
     )
 
 
+RUN_STATE_KEYS = ("status", "status_reason")  # written into metrics.json by the CLI's run-folder bookkeeping
+
+
+def recompute_metrics(run_dir: Path) -> dict[str, Any]:
+    """``metrics.json`` of a run folder recomputed from its ``config.toml`` and ``trajectory.npz`` alone.
+
+    The plan is made again from the saved configuration (``plan_task`` is deterministic);
+    the run-folder state keys (``status``) are carried over from the folder's metrics.json.
+    """
+    run_dir = Path(run_dir)
+    config = ScenarioConfig.from_toml(run_dir / "config.toml")
+    plan = plan_task(model_geometry(config.arm, config.model), config.layout, config.plan)
+    metrics = met.compute_metrics(Trajectory.load(run_dir / "trajectory.npz"), plan, config)
+    written = run_dir / "metrics.json"
+    if written.exists():
+        old = json.loads(written.read_text())
+        metrics.update({k: old[k] for k in RUN_STATE_KEYS if k in old})
+    return metrics
+
+
+def metrics_text(metrics: dict[str, Any]) -> str:
+    """The exact text of ``metrics.json``."""
+    return json.dumps(metrics, indent=2, sort_keys=True)
+
+
 def start_run_dir(out_dir: Path, config: ScenarioConfig, root: Any) -> None:
     """Before simulating: the configuration and the exact model of the run."""
     from dm_control import mjcf
@@ -173,6 +203,6 @@ def write_run(out_dir: Path, trajectory: Trajectory, metrics: dict[str, Any], pl
     """
     from . import plots
 
-    atomic_write_text(out_dir / "metrics.json", json.dumps(metrics, indent=2, sort_keys=True))
+    atomic_write_text(out_dir / "metrics.json", metrics_text(metrics))
     trajectory.save(out_dir / "trajectory.npz")
     plots.write_run_plots(out_dir / "plots", trajectory.series(), plan, config)

@@ -111,6 +111,21 @@ def measure_state(sim: Simulation) -> MeasuredState:
     return MeasuredState(float(data.time), dt, sim.plan_index, arms, not bool(data.eq_active[h.sample_weld]))
 
 
+class NoisyMeasurement:
+    """``measure_state`` plus seeded Gaussian noise on each arm's measured tool-centre position."""
+
+    def __init__(self, std_m: float, seed: int) -> None:
+        self.std = float(std_m)
+        self.rng = np.random.default_rng(seed)
+
+    def __call__(self, sim: Simulation) -> MeasuredState:
+        state = measure_state(sim)
+        for arm in sorted(state.arms):
+            m = state.arms[arm]
+            m.tcp_pos[:] += self.rng.normal(0.0, self.std, 3)
+        return state
+
+
 def apply_commands(sim: Simulation, commands: MotorCommands) -> None:
     """Write the motor commands into the actuators' controls: where commands meet the plant."""
     data, h = sim.data, sim.handles
