@@ -170,17 +170,14 @@ def _cmd_build_model(args: argparse.Namespace) -> int:
     from .model.export import export_models
 
     check_output_dir(args.out, create=False)
-    if args.config is None:
-        check_output_dir(args.out)
-        paths = export_models(args.out)
-    else:
-        from .limits import check_model_geometry
-        from .scenario.config import ScenarioConfig
+    from .limits import check_model_geometry
+    from .scenario.config import ScenarioConfig
 
-        config = ScenarioConfig.from_toml(args.config)
-        check_model_geometry(config)
-        check_output_dir(args.out)
-        paths = export_models(args.out, config.arm, config.layout, config.model, config.scene)
+    # No --config: the shipped scenario defaults, i.e. the model `continuum-sim run` simulates.
+    config = ScenarioConfig.default() if args.config is None else ScenarioConfig.from_toml(args.config)
+    check_model_geometry(config)
+    check_output_dir(args.out)
+    paths = export_models(args.out, config.arm, config.layout, config.model, config.scene)
     if not args.models_only:
         from pathlib import Path
 

@@ -42,3 +42,17 @@ def test_build_model_cli_bad_config_exits_2(tmp_path, capsys):
     bad.write_text("[model]\nsegments_per_section = -1\n")
     assert main(["build-model", "--out", str(tmp_path), "--config", str(bad)]) == 2
     assert "segments_per_section" in capsys.readouterr().err
+
+
+def test_committed_scene_is_the_model_run_simulates(fresh):
+    """models/dual_arm.xml = the scene `continuum-sim run` compiles from the shipped defaults."""
+    from continuum_sim.model.export import PRECISION, ZERO_THRESHOLD
+    from continuum_sim.scenario.config import ScenarioConfig
+    from continuum_sim.scenario.runner import build_scene_model
+
+    config = ScenarioConfig.default()
+    root, model = build_scene_model(config)
+    assert root.to_xml_string(precision=PRECISION, zero_threshold=ZERO_THRESHOLD) == fresh[DUAL_ARM_FILE]
+    committed = mujoco.MjModel.from_xml_path(str(MODELS / DUAL_ARM_FILE))
+    assert committed.opt.timestep == config.model.timestep == model.opt.timestep
+    assert (committed.nq, committed.nv, committed.nu, committed.ngeom) == (model.nq, model.nv, model.nu, model.ngeom)
