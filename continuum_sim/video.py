@@ -20,8 +20,11 @@ from __future__ import annotations
 
 import os
 import pickle
+import signal
 import subprocess
+import sys
 import tempfile
+import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
@@ -109,6 +112,26 @@ def _open_writer(path: Path, fps: float) -> Any:
 
 # ---------------------------------------------------------------- worker process side
 _WORKER: dict[str, Any] = {}
+
+
+def _interrupted() -> bool:
+    """Whether a KeyboardInterrupt (or another non-Exception, e.g. the CLI's SIGTERM) is propagating."""
+    kind = sys.exc_info()[0]
+    return kind is not None and not issubclass(kind, Exception)
+
+
+def _spawn_ignoring_sigint(pool: ProcessPoolExecutor, workers: int) -> None:
+    """Start all render workers now with SIGINT ignored (inherited through exec): a terminal's
+    Ctrl-C reaches the whole process group, and the workers must not each print a traceback;
+    the driver handles it and stops them (``close``)."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        for _ in range(workers):
+            pool.submit(int)  # one spawn per submit while no worker is idle
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _worker_init(model_bytes: bytes, cameras: list[str], width: int, height: int, fps: float) -> None:
@@ -214,6 +237,7 @@ class VideoRecorder:
                 initializer=_worker_init,
                 initargs=(pickle.dumps(render_model), self.cameras, width, height, fps),
             )
+            _spawn_ignoring_sigint(self._pool, self.workers)
 
     def _snapshot(self, data: Any) -> FrameState:
         """The frame's state; the colour table only when it changed or a new chunk starts
@@ -259,10 +283,19 @@ class VideoRecorder:
         self._pending = []
 
     def close(self, keep: bool = True) -> None:
-        """Finish the file; with ``keep`` it is moved to its final name, else discarded."""
+        """Finish the file; with ``keep`` it is moved to its final name, else discarded.
+
+        Closed while Ctrl-C/SIGTERM propagates: the render workers are stopped at once and
+        the partial video discarded (no half video under the final name, no wait for chunks).
+        """
         if self._closed:
             return
         self._closed = True
+        if _interrupted():
+            keep = False
+            if self._pool is not None:
+                for process in list((getattr(self._pool, "_processes", None) or {}).values()):  # private: no public kill
+                    process.kill()
         if self._writer is not None:
             try:
                 self._writer.close()
