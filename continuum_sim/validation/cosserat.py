@@ -37,6 +37,7 @@ K·u = −τ r × e₃ with u × r ∥ e₃, i.e. a constant curvature κ = τ·
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -132,44 +133,54 @@ def _hat(v: Array) -> Array:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
-def _tendon_moment(u: Array, offsets: Array, tensions: Array) -> Array:
-    """Σ τ_i r_i × t̂_i(u) in the body frame (t̂: unit tendon tangent, body frame)."""
-    if len(tensions) == 0:
-        return np.zeros(3)
+def _tendon_moment(u: Array, offsets: Array, tensions: Array, jacobian: bool = False):
+    """Σ τ_i r_i × t̂_i(u) in the body frame (t̂: unit tendon tangent, body frame), and its ∂/∂u.
+
+    d_i = e₃ + u × r_i = e₃ − [r_i]× u, t̂_i = d_i/|d_i|, so
+    ∂(r_i × t̂_i)/∂u = −[r_i]× (I − t̂_i t̂_iᵀ)/|d_i| [r_i]×.
+    """
     r = np.column_stack([offsets, np.zeros(len(offsets))])
     d = E3 + np.cross(u, r)
-    t = d / np.linalg.norm(d, axis=1)[:, None]
-    return (tensions[:, None] * np.cross(r, t)).sum(axis=0)
+    norm = np.linalg.norm(d, axis=1)
+    t = d / norm[:, None]
+    moment = (tensions[:, None] * np.cross(r, t)).sum(axis=0)
+    if not jacobian:
+        return moment
+    jac = np.zeros((3, 3))
+    eye = np.eye(3)
+    for ri, ti, ni, tau in zip(r, t, norm, tensions):
+        rx = _hat(ri)
+        jac -= tau / ni * rx @ (eye - np.outer(ti, ti)) @ rx
+    return moment, jac
 
 
 def solve_curvature(m_body: Array, piece: RodPiece, offsets: Array, tensions: Array, u0: Array | None = None) -> Array:
-    """u with K·u + Σ τ r × t̂(u) = m_body (Newton on the 3×3 system; twist held 0 when GJ = ∞)."""
+    """u with K·u + Σ τ r × t̂(u) = m_body (Newton, analytic 3×3 Jacobian; twist held 0 when GJ = ∞)."""
     locked = not math.isfinite(piece.twist)
     k = np.array([piece.bending_x, piece.bending_y, 1.0 if locked else piece.twist])
+    if len(tensions) == 0:  # no tendon: the plain constitutive law
+        u = m_body / k
+        if locked:
+            u[2] = 0.0
+        return u
     u = np.zeros(3) if u0 is None else u0.copy()
     dim = 2 if locked else 3
     if locked:
         u[2] = 0.0
-    for _ in range(30):
-        g = k * u + _tendon_moment(u, offsets, tensions) - m_body
-        g = g[:dim]
-        jac = np.empty((dim, dim))
-        h = 1e-7 * max(1.0, float(np.abs(u).max()))
-        for j in range(dim):
-            du = np.zeros(3)
-            du[j] = h
-            jac[:, j] = ((k * (u + du) + _tendon_moment(u + du, offsets, tensions) - m_body)[:dim] - g) / h
-        step = np.linalg.solve(jac, -g)
-        u[:dim] += step
-        if np.abs(step).max() < 1e-13 * max(1.0, float(np.abs(u).max())):
+    scale = float(np.abs(m_body).max()) + float(tensions.sum()) * float(np.abs(offsets).max()) + 1e-300
+    for _ in range(50):
+        moment, jac = _tendon_moment(u, offsets, tensions, jacobian=True)
+        g = (k * u + moment - m_body)[:dim]
+        if np.abs(g).max() <= 1e-14 * scale:
             break
+        u[:dim] -= np.linalg.solve(np.diag(k[:dim]) + jac[:dim, :dim], g)
     return u
 
 
 class CosseratSolver:
     """Shooting solver of ``CosseratRobot`` statics."""
 
-    def __init__(self, robot: CosseratRobot, rtol: float = 1e-10, atol: float = 1e-12) -> None:
+    def __init__(self, robot: CosseratRobot, rtol: float = 1e-9, atol: float = 1e-12) -> None:
         self.robot = robot
         self.rtol, self.atol = rtol, atol
         self.gravity = np.asarray(robot.gravity, dtype=float)
@@ -208,14 +219,14 @@ class CosseratSolver:
             at_break[k] = at_break.get(k, 0.0) + mass
         samples_s, samples_y = [0.0], [y.copy()]
         self._u_guess = np.zeros(3)
-        for k, (a, b) in enumerate(zip(breaks[:-1], breaks[1:]), start=1):
+        for k, (a, b) in enumerate(itertools.pairwise(breaks), start=1):
             mid = 0.5 * (a + b)
             offsets, tensions = self._active(mid)
             rhs = self._rhs_factory(offsets, tensions, self.robot.piece_at(mid))
             sol = solve_ivp(rhs, (a, b), y, method="DOP853", rtol=self.rtol, atol=self.atol, dense_output=dense)
             y = sol.y[:, -1].copy()
             if dense:
-                grid = np.linspace(a, b, max(3, int(math.ceil((b - a) / 0.002)) + 1))[1:]
+                grid = np.linspace(a, b, max(3, math.ceil((b - a) / 0.002) + 1))[1:]
                 samples_s.extend(grid)
                 samples_y.extend(sol.sol(grid).T)
             # a lumped mass at b: the internal force drops by its weight across it

@@ -101,9 +101,7 @@ class ModeComparison:
 
 def model_bending_frequencies(geometry: ArmGeometry, options: ModelOptions, count: int = 2, pretension: float = PRETENSION) -> Array:
     """Lowest ``count`` bending frequencies (Hz) of the held, undamped section (mjd_transitionFD)."""
-    from ..glbackend import choose_gl_backend
 
-    choose_gl_backend()
     import mujoco
 
     from ..model.arm import build_single_arm_model

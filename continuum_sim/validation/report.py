@@ -82,7 +82,13 @@ def _arm_and_options():
 
 # =========================================================================== checks
 def _cosserat_analytic(quick: bool) -> list[Row]:
-    from .cosserat import CosseratRobot, CosseratSolver, RodPiece, Tendon, constant_curvature_tip
+    from .cosserat import (
+        CosseratRobot,
+        CosseratSolver,
+        RodPiece,
+        Tendon,
+        constant_curvature_tip,
+    )
 
     arm, options = _arm_and_options()
     from .tendon_arm import section_rigidities
@@ -159,7 +165,12 @@ def _sorosim_statics(quick: bool) -> list[Row]:
 
 def _tendon_sweep(section: int, segments: int = 0) -> Callable[[bool], list[Row]]:
     def run(quick: bool) -> list[Row]:
-        from .tendon_arm import ArmStatics, compare, max_single_tension, section_geometry
+        from .tendon_arm import (
+            ArmStatics,
+            compare,
+            max_single_tension,
+            section_geometry,
+        )
 
         arm, options = _arm_and_options()
         options = dataclasses.replace(options, segments_per_section=segments)
@@ -388,7 +399,12 @@ def write_plots(out: Path, quick: bool) -> list[Path]:
     from ..configio import atomic_write_figure
     from .sorosim import RODS
     from .sorosim_dynamics import compare_release
-    from .tendon_arm import ArmStatics, max_single_tension, section_geometry, solve_cosserat
+    from .tendon_arm import (
+        ArmStatics,
+        max_single_tension,
+        section_geometry,
+        solve_cosserat,
+    )
 
     paths = []
     fig, axes = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)

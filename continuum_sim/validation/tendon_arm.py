@@ -86,9 +86,7 @@ class ArmStatics:
     """The compiled arm (or some of its sections) solved under known cable tensions."""
 
     def __init__(self, geometry: ArmGeometry, options: ModelOptions) -> None:
-        from ..glbackend import choose_gl_backend
 
-        choose_gl_backend()
         import mujoco
 
         from ..model.arm import build_single_arm_model
