@@ -9,6 +9,7 @@ never needs the sweep folder. No backend decides what a variant computes: that i
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import multiprocessing
 import os
@@ -17,7 +18,7 @@ import socket
 import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
@@ -76,11 +77,33 @@ def _watch_driver(driver_pid: int, parent_pid: int) -> None:
 
 
 def worker_init(driver_pid: int) -> None:
-    """Pool initializer: never outlive the driver (a SIGKILLed sweep leaves no orphan workers), then warm up."""
+    """Pool initializer: never outlive the driver (a SIGKILLed sweep leaves no orphan workers), then warm up.
+
+    Ctrl-C is the driver's to handle (a terminal sends it to the whole process group; each
+    worker would print a traceback): workers ignore SIGINT and the driver stops them.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _die_with_parent()
     threading.Thread(target=_watch_driver, args=(driver_pid, os.getppid()), daemon=True, name="watch-driver").start()
     sys.setrecursionlimit(max(sys.getrecursionlimit(), 10_000))  # deep models (200 segments per section)
     warm_up()
+
+
+@contextlib.contextmanager
+def _stopped_on_interrupt(pool: ProcessPoolExecutor) -> Iterator[ProcessPoolExecutor]:
+    """``with pool``, except that Ctrl-C/SIGTERM kills the workers at once instead of waiting for their variants
+    (finished variants are already recorded; the rest run again on resume)."""
+    try:
+        yield pool
+    except BaseException as exc:
+        if not isinstance(exc, Exception):
+            for process in list((getattr(pool, "_processes", None) or {}).values()):  # private: no public kill
+                process.kill()
+            pool.shutdown(wait=False, cancel_futures=True)
+        else:
+            pool.shutdown(wait=True)
+        raise
+    pool.shutdown(wait=True)
 
 
 def _executor(workers: int) -> ProcessPoolExecutor:
@@ -99,10 +122,10 @@ def run_processes(spec: SweepSpec, variants: Sequence[Variant], workers: int, ru
     pools, so only the variant that kills its process is recorded as failed.
     """
     remaining = list(variants)
-    with _executor(workers) as pool:
+    with _stopped_on_interrupt(_executor(workers)) as pool:
         remaining = _drain(pool, spec, remaining, workers, run_root, on_result)
     for variant in remaining:  # after a crash: isolate each unfinished variant
-        with _executor(1) as pool:
+        with _stopped_on_interrupt(_executor(1)) as pool:
             left = _drain(pool, spec, [variant], 1, run_root, on_result)
         for dead in left:
             on_result(dead, _failed("worker process died (crash or out of memory) while evaluating this variant"))
