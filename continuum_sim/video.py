@@ -121,17 +121,18 @@ def _interrupted() -> bool:
 
 
 def _spawn_ignoring_sigint(pool: ProcessPoolExecutor, workers: int) -> None:
-    """Start all render workers now with SIGINT ignored (inherited through exec): a terminal's
-    Ctrl-C reaches the whole process group, and the workers must not each print a traceback;
-    the driver handles it and stops them (``close``)."""
-    if threading.current_thread() is not threading.main_thread():
+    """Start all render workers now with SIGINT blocked (the mask survives fork and exec): a
+    terminal's Ctrl-C reaches the whole process group, and the workers must not each print a
+    traceback; the driver handles it and stops them (``close``). Blocked, not ignored, in the
+    driver: a Ctrl-C during the spawn stays pending and is delivered right after."""
+    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
         return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         for _ in range(workers):
             pool.submit(int)  # one spawn per submit while no worker is idle
     finally:
-        signal.signal(signal.SIGINT, previous)
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _worker_init(model_bytes: bytes, cameras: list[str], width: int, height: int, fps: float) -> None:

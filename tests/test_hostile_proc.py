@@ -51,15 +51,20 @@ def _wait_for(path: Path, proc: subprocess.Popen, timeout: float = 120.0) -> Non
         time.sleep(0.05)
 
 
-@pytest.mark.parametrize("sig, code", [(signal.SIGINT, EXIT_INTERRUPTED), (signal.SIGTERM, EXIT_TERMINATED)],
-                         ids=["ctrl-c", "sigterm"])
-def test_interrupted_run_is_one_line_and_marked(tmp_path, sig, code):
+@pytest.mark.parametrize("sig, code, video", [(signal.SIGINT, EXIT_INTERRUPTED, True), (signal.SIGTERM, EXIT_TERMINATED, False)],
+                         ids=["ctrl-c-video", "sigterm"])
+def test_interrupted_run_is_one_line_and_marked(tmp_path, sig, code, video):
     out = tmp_path / "run"
-    proc = subprocess.Popen([*CLI, "run", "--quiet", "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=_env())
+    argv = [*CLI, "run", "--quiet", "--out", str(out), *(["--video"] if video else [])]
+    # A process group of its own: Ctrl-C in a terminal reaches every process of the group (render workers too).
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(), process_group=0)
     _wait_for(out / "config.toml", proc)  # past planning: the model is built and the run folder is being filled
     assert read_state(out) == "running"
-    proc.send_signal(sig)
+    time.sleep(2.0)  # video: the render workers are up
+    if sig == signal.SIGINT:
+        os.killpg(proc.pid, sig)
+    else:
+        proc.send_signal(sig)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == code, err
     assert "interrupted" in _one_line(err) or "terminated" in _one_line(err)
@@ -159,11 +164,13 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
-def test_sigkill_of_sweep_driver_leaves_no_workers(tmp_path):
+@pytest.mark.parametrize("how", ["sigkill", "ctrl-c"])
+def test_stopped_sweep_driver_leaves_no_workers(tmp_path, how):
     spec = tmp_path / "slow.toml"
     spec.write_text('[grid]\n"model.stiffness_scale" = [1.0, 1.1, 1.2, 1.3]\n[evaluation]\nkind = "gravity_sag"\nsettle_s = 100.0\n')
     driver = subprocess.Popen([*CLI, "sweep", str(spec), "--out", str(tmp_path / "out"), "--workers", "2", "--batch", "off",
-                               "--quiet"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=_env())
+                               "--quiet"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=_env(),
+                              process_group=0)
     end = time.monotonic() + 120
     workers: set[int] = set()
     while len(workers) < 4 and time.monotonic() < end:  # resource tracker, forkserver, two workers
@@ -171,8 +178,15 @@ def test_sigkill_of_sweep_driver_leaves_no_workers(tmp_path):
         time.sleep(0.2)
         workers = _children(driver.pid)
     assert len(workers) >= 4
-    driver.kill()
-    driver.wait()
+    if how == "sigkill":
+        driver.kill()
+        driver.wait()
+    else:
+        time.sleep(1.0)  # the workers are inside their variants
+        os.killpg(driver.pid, signal.SIGINT)
+        _, err = driver.communicate(timeout=60)
+        assert driver.returncode == EXIT_INTERRUPTED
+        assert "rerun to resume" in _one_line(err)
     end = time.monotonic() + 30
     while any(_alive(p) for p in workers) and time.monotonic() < end:
         time.sleep(0.2)
