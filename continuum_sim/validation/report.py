@@ -468,6 +468,9 @@ def cmd_validate(args) -> int:
     unknown = [n for n in (args.only or []) if n not in known]
     if unknown:
         raise ConfigError("--only", f"unknown check(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
+    from ..configio import check_output_dir
+
+    check_output_dir(args.out, create=False)  # a bad --out is refused before minutes of checks
     report = run_checks(args.quick, args.only, progress=lambda msg: print(msg, file=sys.stderr))
     paths = write_report(report, Path(args.out), plots=not args.no_plots)
     print(report.markdown(), end="")
