@@ -130,7 +130,12 @@ def _cmd_metrics(args: argparse.Namespace) -> int:
             raise UsageError(f"RUN_DIR: {run_dir} has no {name} (not a run folder, or the run did not finish)")
     from .configio import atomic_write_text
     from .scenario.runner import metrics_text, recompute_metrics
+    from .scenario.trajectory import Trajectory
 
+    try:  # a damaged or foreign file is bad input, not a bug
+        Trajectory.load(run_dir / "trajectory.npz")
+    except Exception as exc:  # noqa: BLE001 - zip, pickle, missing keys, truncation: all mean unreadable
+        raise UsageError(f"RUN_DIR: {run_dir}/trajectory.npz is not a readable trajectory ({type(exc).__name__}: {exc})") from None
     text = metrics_text(recompute_metrics(run_dir))
     written = run_dir / "metrics.json"
     if args.write:
@@ -673,6 +678,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                 warnings.showwarning = summary.show
             _check_environment()
             _check_finite_args(parser, args)
+            if isinstance(getattr(args, "out", None), str):  # every command's --out, file or folder
+                from .configio import check_output_path
+
+                check_output_path(args.out, "--out")
             code = int(args.func(args) or 0)
             sys.stdout.flush()
         note = summary.line(prog)
@@ -683,9 +692,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         _silence_stdout()
         return EXIT_BROKEN_PIPE
     except KeyboardInterrupt:
-        return fail(EXIT_INTERRUPTED, "interrupted (Ctrl-C); partial results are marked interrupted")
+        return fail(EXIT_INTERRUPTED, "interrupted (Ctrl-C)")
     except _Terminated:
-        return fail(EXIT_TERMINATED, "terminated (SIGTERM); partial results are marked interrupted")
+        return fail(EXIT_TERMINATED, "terminated (SIGTERM)")
     except (ConfigError, UsageError) as exc:
         return fail(EXIT_USAGE, f"error: {exc}")
     except MemoryError:

@@ -443,6 +443,27 @@ NAME_MAX = 255  # bytes per path component on Linux file systems
 PATH_MAX = 4096
 
 
+def check_output_path(text: str, option: str = "--out") -> None:
+    """What is wrong with any output path, file or folder: empty, NUL byte, too long, under /proc, /sys or /dev.
+
+    The CLI boundary applies it to every command's ``--out`` before the command runs.
+    """
+    if not text.strip():
+        raise ConfigError(option, "must name an output path (got an empty string)")
+    if "\0" in text:
+        raise ConfigError(option, f"contains a NUL byte: {shorten(text)}")
+    encoded = os.fsencode(text)
+    if len(encoded) >= PATH_MAX:
+        raise ConfigError(option, f"path is {len(encoded)} bytes; at most {PATH_MAX - 1} allowed: {shorten(text)}")
+    for part in Path(text).parts:
+        if len(os.fsencode(part)) > NAME_MAX:
+            raise ConfigError(option, f"a folder name is {len(os.fsencode(part))} bytes; at most {NAME_MAX} allowed: {shorten(part)}")
+    absolute = Path(os.path.abspath(text))
+    for tree in SYSTEM_TREES:
+        if absolute == Path(tree) or Path(tree) in absolute.parents:
+            raise ConfigError(option, f"{shorten(str(absolute))} is under {tree}, a system tree; write results elsewhere")
+
+
 def check_output_dir(path: str | os.PathLike[str], option: str = "--out", create: bool = True) -> Path:
     """Check (and with ``create`` make) an output folder; every problem is one ``ConfigError`` naming ``option``.
 
@@ -453,19 +474,9 @@ def check_output_dir(path: str | os.PathLike[str], option: str = "--out", create
     text = os.fspath(path)
     if not isinstance(text, str) or not text.strip():
         raise ConfigError(option, "must name a folder (got an empty string); e.g. runs/my_run")
-    if "\0" in text:
-        raise ConfigError(option, f"contains a NUL byte: {shorten(text)}")
-    encoded = os.fsencode(text)
-    if len(encoded) >= PATH_MAX:
-        raise ConfigError(option, f"path is {len(encoded)} bytes; at most {PATH_MAX - 1} allowed: {shorten(text)}")
-    for part in Path(text).parts:
-        if len(os.fsencode(part)) > NAME_MAX:
-            raise ConfigError(option, f"a folder name is {len(os.fsencode(part))} bytes; at most {NAME_MAX} allowed: {shorten(part)}")
+    check_output_path(text, option)
     out = Path(text)
     absolute = Path(os.path.abspath(text))
-    for tree in SYSTEM_TREES:
-        if absolute == Path(tree) or Path(tree) in absolute.parents:
-            raise ConfigError(option, f"{shorten(str(absolute))} is under {tree}, a system tree; write results elsewhere")
     if out.exists() and not out.is_dir():
         raise ConfigError(option, f"{shorten(text)} exists and is not a folder; give a folder path")
     ancestor = absolute
