@@ -68,7 +68,43 @@ def main() -> int:
                 f"| {100 * leaf_peak_strain(geometry, s):.2f} % | {kx:.4g} | {section_bending_rigidity(geometry, s):.4g} "
                 f"| {kz:.4g} | {t:.1f} | {t / math.cos(math.radians(30)):.1f} |"
             )
+    print()
+    holding_table(base)
     return 0
+
+
+def holding_table(base: ArmGeometry) -> None:
+    """Least cable tensions holding 90° on the MuJoCo model (gravity off), worst over bending directions."""
+    import numpy as np
+
+    from continuum_sim.glbackend import choose_gl_backend
+    from continuum_sim.model.arm import build_single_arm_model
+    from continuum_sim.model.holding import holding_tensions
+    from continuum_sim.model.options import ModelOptions
+
+    choose_gl_backend()
+    import mujoco
+
+    options = ModelOptions(joint="ball")
+    print("| segments | section at 90° (others straight): worst tension over directions (N) | all three at 90°, worst S-shape (N) |")
+    print("|---|---|---|")
+    for name, geometry in (("today (r = 0)", _with_radius(base, 0.0)), ("strain-limited", strain_limited_geometry(base))):
+        model = mujoco.MjModel.from_xml_string(build_single_arm_model(geometry, options, gravity=False).to_xml_string())
+        single = []
+        for k, s in enumerate(geometry.sections):
+            worst = 0.0
+            for phi in np.arange(0.0, 120.0, 15.0):
+                q = np.zeros(6)
+                q[2 * k], q[2 * k + 1] = s.max_bend, math.radians(s.cable_angles_deg[0] + phi)
+                worst = max(worst, float(holding_tensions(model, geometry, q, "ball")[0].max()))
+            single.append(f"{NAMES[k]} {worst:.1f}")
+        combined = 0.0
+        for p0 in range(0, 120, 30):
+            for d1 in (0, 90, 180, 270):
+                for d2 in (0, 90, 180, 270):
+                    q = np.radians([90, p0, 90, p0 + d1, 90, p0 + d1 + d2])
+                    combined = max(combined, float(holding_tensions(model, geometry, q, "ball")[0].max()))
+        print(f"| {name} | {', '.join(single)} | {combined:.1f} |")
 
 
 if __name__ == "__main__":

@@ -170,14 +170,19 @@ def strain_limited_leaf_radius(geometry: ArmGeometry, section: SectionGeometry) 
 
 
 def bend_tension(geometry: ArmGeometry, section_index: int, bend: float | None = None, scale: float = 1.0) -> float:
-    """Quasi-static cable tension (N) that holds a section at ``bend`` (default max): M = K_seg·θ/n = T·r_hole.
+    """Quasi-static cable tension (N) that holds a section at ``bend`` (default max): K_seg·θ_seg = T·lever.
 
-    One cable in the bending plane; the worst direction (30° off a cable) needs 1/cos 30° more.
-    Gravity, pretension and the distal cables' loads on this section are not included.
+    One cable in the bending plane. Its lever about each joint is the distance from the joint
+    to the straight cable piece between the holes of the two disks (SPEC §2's closed-loop
+    vector): r·cos(θ_seg/2) + (p/2)·sin(θ_seg/2), 5 % more than r at 9° per segment. A bend
+    30° off a cable needs about 1/cos 30° more. Gravity, pretension and the distal cables'
+    loads on this section are not included.
     """
     section = geometry.sections[section_index]
     theta = (section.max_bend if bend is None else bend) / section.n_segments
-    return scale * segment_bending_stiffness(geometry, section) * theta / geometry.cable_hole_radius
+    r, half_pitch = geometry.cable_hole_radius, section.pitch / 2.0
+    lever = r * math.cos(theta / 2.0) + half_pitch * math.sin(theta / 2.0)
+    return scale * segment_bending_stiffness(geometry, section) * theta / lever
 
 
 def strain_limited_geometry(geometry: ArmGeometry, resolution: float = 1e-4) -> ArmGeometry:
