@@ -75,8 +75,15 @@ def tool_payload(config, tool: str) -> Payload:
         d = data.xipos[b] - com
         inertia += rot @ np.diag(model.body_inertia[b]) @ rot.T
         inertia += model.body_mass[b] * (d @ d * np.eye(3) - np.outer(d, d))
-    full = (inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2])
-    return Payload(tool, total, tuple(float(v) for v in com), tuple(float(v) for v in full))
+    full = (
+        float(inertia[0, 0]),
+        float(inertia[1, 1]),
+        float(inertia[2, 2]),
+        float(inertia[0, 1]),
+        float(inertia[0, 2]),
+        float(inertia[1, 2]),
+    )
+    return Payload(tool, total, (float(com[0]), float(com[1]), float(com[2])), full)
 
 
 def add_payload(root, arm: str, payload: Payload) -> None:
