@@ -258,13 +258,29 @@ class CosseratSolver:
         m0 = np.asarray(self.robot.tip_moment) + np.cross(E3 * self.robot.length, np.asarray(self.robot.tip_force)) + moment
         return np.concatenate([n0, m0])
 
-    def solve(self, guess: Array | None = None) -> CosseratSolution:
+    def _shoot(self, x0: Array) -> tuple[Array, float, bool]:
         from scipy.optimize import root
 
-        x0 = self.initial_guess() if guess is None else guess
         sol = root(self.residual, x0, method="hybr", options={"xtol": 1e-12})
-        x = sol.x
-        res = float(np.abs(self.residual(x)).max())
+        res = float(np.abs(self.residual(sol.x)).max())
+        return sol.x, res, bool(sol.success or res < 1e-9)
+
+    def solve(self, guess: Array | None = None, ramps: tuple[int, ...] = (1, 4, 16)) -> CosseratSolution:
+        """Shoot from ``guess`` (default: the straight robot's base wrench); when that fails,
+        continue in the load: gravity, tensions and tip loads scaled k/steps, k = 1…steps,
+        each step starting from the last (large self-weight bends need it)."""
+        x0 = self.initial_guess() if guess is None else guess
+        x, res, ok = self._shoot(x0)
+        robot = self.robot
+        for steps in ramps[1:]:
+            if ok:
+                break
+            xk = CosseratSolver(_scaled(robot, 0.0), self.rtol, self.atol).initial_guess()
+            for k in range(1, steps + 1):
+                stage = CosseratSolver(_scaled(robot, k / steps), self.rtol, self.atol)
+                xk, res, ok = stage._shoot(xk)
+            x = xk
+        converged = ok
         _, s, ys = self.integrate(x[:3], x[3:], dense=True)
         rots = ys[:, 3:12].reshape(-1, 3, 3)
         curv = []
@@ -273,8 +289,20 @@ class CosseratSolver:
             offsets, tensions = self._active(inner)
             piece = self.robot.piece_at(inner)
             curv.append(solve_curvature(y[3:12].reshape(3, 3).T @ y[15:18], piece, offsets, tensions))
-        converged = bool(sol.success or res < 1e-9)
         return CosseratSolution(s, ys[:, :3].copy(), rots, np.array(curv), res, converged)
+
+
+def _scaled(robot: CosseratRobot, factor: float) -> CosseratRobot:
+    """``robot`` with gravity, tensions and tip loads times ``factor`` (load continuation)."""
+    import dataclasses
+
+    return dataclasses.replace(
+        robot,
+        tendons=tuple(dataclasses.replace(t, tension=factor * t.tension) for t in robot.tendons),
+        gravity=tuple(factor * g for g in robot.gravity),
+        tip_force=tuple(factor * f for f in robot.tip_force),
+        tip_moment=tuple(factor * m for m in robot.tip_moment),
+    )
 
 
 def constant_curvature_tip(kappa: float, length: float, phi: float = 0.0) -> Array:

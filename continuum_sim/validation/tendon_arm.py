@@ -32,7 +32,7 @@ from ..geometry import ArmGeometry
 from ..model.options import ModelOptions, model_geometry
 from ..model.stiffness import segment_stiffness
 from .cosserat import CosseratRobot, CosseratSolution, CosseratSolver, RodPiece, Tendon
-from .statics import StaticSolver
+from .statics import StaticSolver, StaticSolverOptions
 
 Array = NDArray[np.float64]
 
@@ -56,6 +56,32 @@ class TendonStaticSolver(StaticSolver):
     def __init__(self, model, data, tensions: Array, options=None) -> None:
         super().__init__(model, data, options)
         self.tensions = np.asarray(tensions, dtype=float)
+
+    def solve(self, gravity, wrenches):
+        """Equilibrium with gravity, wrenches *and tensions* ramped together (k/steps), each
+        stage from the last; ramps as in the options, tried in turn until all stages converge."""
+        import dataclasses
+
+        full, start, options = self.tensions.copy(), self.data.qpos.copy(), self.options
+        gravity, wrenches = np.asarray(gravity, dtype=float), np.asarray(wrenches, dtype=float)
+        result = None
+        try:
+            self.options = dataclasses.replace(options, ramps=(1,))
+            for steps in options.ramps:
+                self.data.qpos[:] = start
+                ok = True
+                for k in range(1, steps + 1):
+                    self.tensions = full * (k / steps)
+                    result = super().solve(gravity * (k / steps), wrenches * (k / steps))
+                    ok &= result.converged
+                if ok:
+                    break
+            self.model.opt.gravity[:] = gravity
+            self.data.xfrc_applied[:] = wrenches
+        finally:
+            self.tensions, self.options = full, options
+        assert result is not None
+        return dataclasses.replace(result, converged=bool(ok))
 
     def net_force(self, qpos, wrenches, loaded=None):
         f = super().net_force(qpos, wrenches, loaded)
@@ -108,7 +134,7 @@ class ArmStatics:
         """Equilibrium under cable tensions (N, section-major, 3 per section) and gravity."""
         full = np.zeros(self.model.ntendon)
         full[self.cables] = np.asarray(tensions, dtype=float)
-        solver = TendonStaticSolver(self.model, self.data, full)
+        solver = TendonStaticSolver(self.model, self.data, full, StaticSolverOptions(ramps=(1, 4, 16, 64)))
         self.data.qpos[:] = self.model.qpos0
         result = solver.solve(np.asarray(gravity, dtype=float), np.zeros((self.model.nbody, 6)))
         self._mj.mj_kinematics(self.model, self.data)
