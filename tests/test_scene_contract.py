@@ -81,11 +81,10 @@ def test_handles_resolve_every_id_the_runtime_needs(scene):
         assert model.site_bodyid[h.tcp_site[arm]] == h.disk_bodies[arm][-1]
     assert model.actuator_trntype[h.spindle_actuator] == mujoco.mjtTrn.mjTRN_JOINT
     assert model.eq_type[h.sample_weld] == mujoco.mjtEq.mjEQ_WELD
-    assert h.kerf_cells.size > 0 and np.all(model.geom_bodyid[h.kerf_cells] == h.plate_body)
+    assert model.geom_contype[h.cutter_geom] == 0 and model.geom_conaffinity[h.cutter_geom] == 0  # it cuts voxels
     kinds = h.geom_kind
     assert np.count_nonzero(kinds == GeomKind.CUTTER) == 1 and kinds[h.cutter_geom] == GeomKind.CUTTER
     assert np.count_nonzero(kinds == GeomKind.GRIPPER) >= 3  # palm, jaws, pads
     for arm in ARMS:
         own = kinds[np.isin(model.geom_bodyid, h.disk_bodies[arm])]
         assert np.all(own == GeomKind.of_arm(arm))
-    assert kinds[h.kerf_cells].max() == GeomKind.OTHER

@@ -1,128 +1,478 @@
-"""Runtime cutting: the spinning cutter removes kerf cells; the sample comes free at the end.
+"""Cutting foam: voxel material, a material-removal cutting force, connectivity detachment.
 
-The scene (``scene.py``) fills the kerf with small static box cells ``kerf_000`` … in the
-plate body and welds the sample body to the plate with ``sample_weld``. ``KerfCutter``
-is called once per control step: every cell that has a contact with the cutter while the
-spindle runs loses its collisions (``geom_contype``/``geom_conaffinity`` = 0) and its
-visibility (alpha 0); when the last cell goes, the weld is deactivated
-(``data.eq_active``) and the sample is a free body. The cutter's detection shell
-(geom ``gap``, no force) reports contacts before they exert force, so a moving cutter
-removes a cell before pressing on it. With the spindle off the cells are ordinary foam.
+The plate's rigid geoms (``scene.py``) only carry the gripper and the clamp; what the
+cutter meets is ``FoamGrid``, a boolean voxel grid over every part of the plate the
+cutter can reach (the whole plate outside the clamped strip, sample included) at
+``FoamOptions.voxel_size``. ``FoamCutter`` runs before every physics step:
 
-This mutates ``model`` (collision masks, colours); ``reset()`` restores them, together
-with a ``mj_resetData``.
+* **Engagement.** The cutter is a cylinder of radius R (``<arm>/grinder/cutter``, axis ≈
+  the plate normal). Its feed velocity v_f is the housing's velocity at the cutter centre
+  in the plate plane. On the leading half circle it samples the remaining material depth
+  a(θ) (voxel columns, overlap with the cutter's axial extent) at ``engagement_points``
+  angles θ from the feed direction.
+* **Force (mechanistic milling model, Altintas, *Manufacturing Automation*, 2nd ed., 2012,
+  ch. 2).** Chip thickness h(θ) = c·cos θ with c = 2π·v_f/ω the feed per revolution (one
+  effective edge: an abrasive burr has no countable teeth; the mean force does not depend
+  on the number of edges). Per unit edge length the tangential force is K_t·h and the
+  radial one K_r·h; averaged over a revolution the force on the cutter is
+  F = −(v_f/ω)·Σ_k a_k [K_r·(e_f·I_cc + e_n·I_cs) + s·K_t·(−e_f·I_cs + e_n·I_cc)] with the
+  exact bin integrals I_cc = ∫cos²θ dθ, I_cs = ∫cos θ sin θ dθ (e_n = z × e_f, s the
+  spin sense), and the spindle torque T = (v_f/ω)·K_t·R·Σ a_k ∫cos θ dθ. So the cutting
+  power is T·ω = K_t·v_f·A = u·MRR with A = R·Σ a_k ∫cos θ dθ the swept cross-section:
+  K_t *is* the specific cutting energy u, and F_t = P/(ω·R). A full slot (a constant)
+  gives |F_normal| = (π/4)·F_t and |F_feed| = (π/4)·(K_r/K_t)·F_t.
+* **Removal.** Voxels whose centres lie inside the cutter are removed (cut) while the
+  spindle turns at least ``min_cutting_speed`` and is not stalled.
+* **A cutter that does not cut** (spindle off or stalled) is pushed out of the remaining
+  material by a spring-damper on the equivalent flat-face penetration (``block_*``).
+* **Spindle.** ``tools.SpindleLoop`` (PI, torque limit, stall) sets the spindle actuator;
+  the cutting torque loads the spindle joint (``qfrc_applied``), so it slows under load.
+* **Detachment.** Every ``connectivity_period`` after material was removed, the grid is
+  labelled (``scipy.ndimage.label``, face connectivity); the sample comes free when the
+  material under the gripper's jaws (voxels within ``grip_radius`` of the grasp point) is
+  no longer connected to the clamped edge. Then the weld ``sample_weld`` is released and
+  every voxel that lost its connection leaves the grid (it went with the sample).
+
+The forces are added to ``xfrc_applied``/``qfrc_applied`` (what was added the step before
+is taken back first), so other per-step models may add theirs.
 """
 
 from __future__ import annotations
 
+import itertools
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
 import mujoco
 import numpy as np
+from scipy import ndimage
 
-from .scene import KERF_PREFIX, SAMPLE_BODY, SAMPLE_WELD
-from .tools import CUTTER_GEOM, GRINDER, SPINDLE_JOINT
+from ..configio import require_int, require_positive, require_range
+from .tools import CUTTER_GEOM, GRINDER, SPINDLE_JOINT, SpindleLoop, ToolOptions
 
 
-class KerfCutter:
-    """Removes kerf cells touched by the spinning cutter; releases the sample weld last."""
+@dataclass(frozen=True)
+class FoamOptions:
+    """The foam's cutting properties and the voxel model (values and sources: docs/cutting.md)."""
 
-    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, arm: str = "left", min_speed: float = 10.0) -> None:
-        """``min_speed`` (rad/s): spindle speed counted as running when ``update`` is not told."""
-        self.model = model
-        self.data = data
+    # Specific cutting energy u = K_t at reference_density (assumed): 3 × the compressive
+    # strength of rigid PU insulation foam of ~30 kg/m³ (≥ 150 kPa, BS 4841 boards per BRUFMA;
+    # ≥ 170 kPa for 28 kg/m³ spray foam, CAN/ULC S705.1), the ratio u/σ_y ≈ 3 that metals show
+    # (Al 6061: σ_y 275 MPa, u ≈ 0.7-1 J/mm³).
+    specific_energy: float = 0.5e6  # J/m³
+    reference_density: float = 30.0  # kg/m³
+    # u ∝ ρ^1.5: the Gibson–Ashby scaling of a cellular solid's crushing strength (Cellular
+    # Solids, 1997, σ_pl ∝ (ρ*/ρ_s)^1.5), assumed to carry over to cutting.
+    density_exponent: float = 1.5
+    radial_ratio: float = 0.5  # K_r/K_t (assumed; metals 0.2-0.6 with sharp edges, a blunt burr ploughs more)
+    voxel_size: float = 0.001  # m, target edge (rounded so whole voxels tile the plate)
+    engagement_points: int = 24  # angles on the leading half circle
+    recent_window: float = 0.25  # s of cutter positions remembered exactly (sub-voxel jitter makes no chip)
+    min_cutting_speed: float = 50.0  # rad/s: a slower spindle rubs instead of cutting
+    block_stiffness: float = 2000.0  # N/m, uncut foam against a cutter that does not cut (assumed, numerically stable at 4 ms)
+    block_damping: float = 10.0  # N·s/m
+    connectivity_period: float = 0.1  # s between connectivity checks (only after material was removed; ~3 ms each at 1 mm)
+    grip_radius: float = 0.006  # m: the material under the jaws, around the grasp point
+
+    def __post_init__(self) -> None:
+        require_positive("specific_energy", self.specific_energy)
+        require_positive("reference_density", self.reference_density)
+        require_range("density_exponent", self.density_exponent, 0.0, 5.0, low_inclusive=True)
+        require_range("radial_ratio", self.radial_ratio, 0.0, 5.0, low_inclusive=True)
+        require_range("voxel_size", self.voxel_size, 0.0002, 0.01, low_inclusive=True)
+        require_int("engagement_points", self.engagement_points, 4, 1000)
+        require_range("recent_window", self.recent_window, 0.0, 5.0, low_inclusive=True)
+        require_range("min_cutting_speed", self.min_cutting_speed, 0.0, 1.0e4, low_inclusive=True)
+        require_range("block_stiffness", self.block_stiffness, 0.0, 1.0e6, low_inclusive=True)
+        require_range("block_damping", self.block_damping, 0.0, 1.0e4, low_inclusive=True)
+        require_range("connectivity_period", self.connectivity_period, 0.0, 10.0, low_inclusive=True)
+        require_range("grip_radius", self.grip_radius, 0.0, 0.1)
+
+    def cutting_energy(self, density: float) -> float:
+        """u (J/m³) of a foam of ``density`` (kg/m³)."""
+        return self.specific_energy * (density / self.reference_density) ** self.density_exponent
+
+
+class FoamGrid:
+    """Boolean voxels of the cuttable plate: ``material[i, j, k]`` (x, y, z), anchor at i = 0."""
+
+    def __init__(self, lo: np.ndarray, hi: np.ndarray, voxel_size: float) -> None:
+        self.lo = np.asarray(lo, float)
+        self.hi = np.asarray(hi, float)
+        self.shape = tuple(max(1, math.ceil(float(e) / voxel_size - 1e-9)) for e in self.hi - self.lo)
+        self.h = (self.hi - self.lo) / np.array(self.shape)
+        self.material = np.ones(self.shape, dtype=bool)
+        self.cut = np.zeros(self.shape, dtype=bool)  # removed by the cutter (not: left with the sample)
+        self.removed_at = np.full(self.shape[:2], np.nan, dtype=np.float32)  # first removal per column (s)
+        self.centres = [self.lo[a] + (np.arange(n) + 0.5) * self.h[a] for a, n in enumerate(self.shape)]
+
+    @property
+    def voxel_volume(self) -> float:
+        return float(np.prod(self.h))
+
+    def reset(self) -> None:
+        self.material[...] = True
+        self.cut[...] = False
+        self.removed_at[...] = np.nan
+
+    def cut_map(self) -> np.ndarray:
+        """Fraction of each column's voxels the cutter removed (2-D, x by y): the kerf seen from above."""
+        return self.cut.mean(axis=2)
+
+    def index_range(self, axis: int, a: float, b: float) -> tuple[int, int]:
+        """[i0, i1) of the voxels whose centres may lie in [a, b] along ``axis``."""
+        i0 = math.floor((a - self.lo[axis]) / self.h[axis] - 0.5)
+        i1 = math.ceil((b - self.lo[axis]) / self.h[axis] + 0.5)
+        n = self.shape[axis]
+        return max(0, i0), min(n, i1)
+
+    def layer_weights(self, z0: float, z1: float) -> np.ndarray:
+        """Length (m) of each z layer inside [z0, z1]."""
+        edges = self.lo[2] + np.arange(self.shape[2] + 1) * self.h[2]
+        return np.clip(np.minimum(edges[1:], z1) - np.maximum(edges[:-1], z0), 0.0, None)
+
+    def depth_at(self, x: np.ndarray, y: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """Material depth (m) in the columns holding the points (x, y), weighted per layer."""
+        i = np.floor((x - self.lo[0]) / self.h[0]).astype(int)
+        j = np.floor((y - self.lo[1]) / self.h[1]).astype(int)
+        inside = (i >= 0) & (i < self.shape[0]) & (j >= 0) & (j < self.shape[1])
+        depth = np.zeros(x.shape)
+        if inside.any():
+            depth[inside] = self.material[i[inside], j[inside], :] @ weights
+        return depth
+
+
+@dataclass
+class CutState:
+    """What the cutter did in the last step (recorded per tick; SI units)."""
+
+    force: np.ndarray = field(default_factory=lambda: np.zeros(3))  # on the cutter, world frame
+    feed_force: float = 0.0  # along −feed (resisting), N
+    normal_force: float = 0.0  # across the feed, N (signed along z × feed)
+    torque: float = 0.0  # cutting torque on the spindle, N·m
+    mrr: float = 0.0  # m³/s
+    power: float = 0.0  # W
+    depth: float = 0.0  # mean engaged depth over the leading half circle, m
+    chip: float = 0.0  # feed per revolution, m
+    feed_speed: float = 0.0  # m/s
+    cutting: bool = False  # spindle fast enough and material engaged
+    blocked: bool = False  # a non-cutting cutter pressed into material
+
+
+class FoamCutter:
+    """Voxel foam + cutting force + spindle loop + connectivity detachment (see module doc)."""
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        grid: FoamGrid,
+        foam: FoamOptions,
+        tools: ToolOptions,
+        density: float,
+        grasp_point: np.ndarray,
+        sample_box: tuple[np.ndarray, np.ndarray],
+        arm: str = "left",
+        kerf: tuple[np.ndarray, float] | None = None,
+    ) -> None:
+        """``kerf`` (planned centre polyline, width) defines the kerf band the ``cells_*``
+        views count (the planned cut, for progress reports); the material is the whole grid."""
+        from .scene import KERF_BAND, SAMPLE_BODY, SAMPLE_WELD
+
+        self.model, self.data, self.grid, self.foam, self.tools = model, data, grid, foam, tools
+        self.u = foam.cutting_energy(density)
         self.cutter = _id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{arm}/{GRINDER}/{CUTTER_GEOM}")
+        self.body = int(model.geom_bodyid[self.cutter])
         spindle = _id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{arm}/{GRINDER}/{SPINDLE_JOINT}")
-        self._spindle_dof = int(model.jnt_dofadr[spindle])
+        self.spindle_dof = int(model.jnt_dofadr[spindle])
+        self.spindle_actuator = _id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{arm}/{GRINDER}/{SPINDLE_JOINT}")
         self.weld = _id(model, mujoco.mjtObj.mjOBJ_EQUALITY, SAMPLE_WELD)
         self.sample_body = _id(model, mujoco.mjtObj.mjOBJ_BODY, SAMPLE_BODY)
-        names = [model.geom(i).name for i in range(model.ngeom)]
-        self.cells = np.array(sorted(i for i, n in enumerate(names) if n.startswith(KERF_PREFIX)), dtype=int)
-        if self.cells.size == 0:
-            raise ValueError(f"model has no kerf cells (geoms named {KERF_PREFIX}*)")
-        self.min_speed = float(min_speed)
-        self._contype0 = model.geom_contype[self.cells].copy()
-        self._conaffinity0 = model.geom_conaffinity[self.cells].copy()
-        self._alpha0 = model.geom_rgba[self.cells, 3].copy()
-        self._cell_of_geom = np.full(model.ngeom + 1, -1, dtype=int)  # geom id -> cell index (-1: not a cell; last: none)
-        self._cell_of_geom[self.cells] = np.arange(self.cells.size)
-        self.reset(reset_data=False)
+        band = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) for n in KERF_BAND]
+        self._band = np.array([g for g in band if g >= 0], dtype=int)
+        self._band_alpha = model.geom_rgba[self._band, 3].copy()
+        self.radius = float(model.geom_size[self.cutter, 0])
+        self.half_length = float(model.geom_size[self.cutter, 1])
+        self.spindle_inertia = float(model.dof_armature[self.spindle_dof] + model.body_inertia[model.dof_bodyid[self.spindle_dof], 2])
+        k = foam.engagement_points
+        edges = np.linspace(-math.pi / 2, math.pi / 2, k + 1)
+        self._theta = 0.5 * (edges[1:] + edges[:-1])
+        a, b = edges[:-1], edges[1:]
+        self._i_c = np.sin(b) - np.sin(a)  # ∫cos θ
+        self._i_cc = (b - a) / 2 + (np.sin(2 * b) - np.sin(2 * a)) / 4  # ∫cos² θ
+        self._i_cs = (np.sin(b) ** 2 - np.sin(a) ** 2) / 2  # ∫cos θ sin θ
+        # Sample one voxel beyond the edge: the voxel holding the point then has its centre
+        # outside the cutter now and ahead of it, so it was never swept before.
+        self._probe = self.radius + float(np.max(grid.h[:2]))
+        # Recent cutter centres: a probe point inside the probe circle of any of them was
+        # reached before (the cutter jittered back and forth), so no chip is there — finer
+        # than the voxels can tell. Older history is the voxels'.
+        n_recent = max(2, math.ceil(foam.recent_window / float(model.opt.timestep)))
+        self._recent = np.full((n_recent, 2), np.inf)
+        self._probe2 = (self._probe - 1e-9) ** 2
+        self._cos_t, self._sin_t = np.cos(self._theta), np.sin(self._theta)
+        self._z_mid = 0.5 * float(grid.lo[2] + grid.hi[2])
+        self._root = int(model.body_rootid[self.body])
+        self._jac = np.zeros((3, model.nv))
+        self._minv_jt = np.zeros((2, model.nv))
+        # Held region: the sample's columns within grip_radius of the grasp point.
+        gx, gy = np.meshgrid(grid.centres[0], grid.centres[1], indexing="ij")
+        lo, hi = sample_box
+        in_sample = (gx >= lo[0]) & (gx <= hi[0]) & (gy >= lo[1]) & (gy <= hi[1])
+        near = (gx - grasp_point[0]) ** 2 + (gy - grasp_point[1]) ** 2 <= foam.grip_radius**2
+        self._held_columns = in_sample & near if (in_sample & near).any() else in_sample
+        band = np.zeros(grid.shape[:2], dtype=bool)
+        if kerf is not None:
+            # The kerf's core: the middle half of its width, so a cut up to a quarter kerf width
+            # off the plan still clears every "cell".
+            line, width = np.asarray(kerf[0], float)[:, :2], 0.5 * float(kerf[1])
+            for a, b in itertools.pairwise(line):
+                ab = b - a
+                t = np.clip(((gx - a[0]) * ab[0] + (gy - a[1]) * ab[1]) / float(ab @ ab), 0.0, 1.0)
+                band |= (gx - a[0] - t * ab[0]) ** 2 + (gy - a[1] - t * ab[1]) ** 2 <= (width / 2) ** 2
+        self._band_columns = band
+        self.spindle = SpindleLoop(tools)
+        self.reset()
 
     # ------------------------------------------------------------------ state
-    def reset(self, reset_data: bool = False) -> None:
-        """Restore every cell and the weld (and ``mj_resetData`` when asked)."""
-        if reset_data:
-            mujoco.mj_resetData(self.model, self.data)
-        self.model.geom_contype[self.cells] = self._contype0
-        self.model.geom_conaffinity[self.cells] = self._conaffinity0
-        self.model.geom_rgba[self.cells, 3] = self._alpha0
+    def reset(self) -> None:
+        """Uncut plate, welded sample, idle spindle (the MuJoCo state is the caller's)."""
+        self.grid.reset()
+        self.spindle.reset()
+        self.model.geom_rgba[self._band, 3] = self._band_alpha
         self.data.eq_active[self.weld] = 1
-        self.removal_time = np.full(self.cells.size, np.nan)
+        self.state = CutState()
         self.detach_time: float | None = None
-
-    @property
-    def n_cells(self) -> int:
-        return int(self.cells.size)
-
-    @property
-    def removed(self) -> np.ndarray:
-        """Boolean mask over cells (in ``kerf_000`` … order)."""
-        return ~np.isnan(self.removal_time)
-
-    @property
-    def cells_remaining(self) -> int:
-        return int(np.count_nonzero(np.isnan(self.removal_time)))
+        self.removed_volume = 0.0
+        self.freed_volume = 0.0  # material that left with the sample
+        self._applied_force = np.zeros(6)
+        self._applied_torque = 0.0
+        self._dirty = False
+        self._last_check = -math.inf
+        self._recent[:] = np.inf
+        self._recent_i = 0
+        self._block: tuple[float, float, float, float, float] | None = None
+        self.checks = 0
 
     @property
     def detached(self) -> bool:
         return self.detach_time is not None
 
+    # Progress views over the planned kerf band's voxel columns (what the kerf cells were).
+    @property
+    def n_cells(self) -> int:
+        """Voxel columns of the planned kerf's core (the middle half of its width)."""
+        return int(np.count_nonzero(self._band_columns))
+
+    @property
+    def cells_remaining(self) -> int:
+        """Kerf-band columns with material left in them."""
+        return int(np.count_nonzero(self.grid.material[self._band_columns].any(axis=1)))
+
+    @property
+    def removal_time(self) -> np.ndarray:
+        """First cut (s) of each kerf-band column (NaN: never cut)."""
+        return self.grid.removed_at[self._band_columns].astype(float)
+
+    @property
+    def stalled(self) -> bool:
+        return self.spindle.stalled
+
     @property
     def spindle_speed(self) -> float:
-        return float(self.data.qvel[self._spindle_dof])
+        return float(self.data.qvel[self.spindle_dof])
 
     # ------------------------------------------------------------------ step
-    def touching_cells(self) -> np.ndarray:
-        """Indices (into ``cells``) of remaining cells in contact with the cutter now."""
-        n = self.data.ncon
-        if n == 0:
-            return np.empty(0, dtype=int)
-        geom = self.data.contact.geom[:n]
-        # The other geom of each cutter contact (-1, mapped to "not a cell", otherwise).
-        other = np.where(geom[:, 0] == self.cutter, geom[:, 1], np.where(geom[:, 1] == self.cutter, geom[:, 0], -1))
-        hits = self._cell_of_geom[other]
-        hits = hits[hits >= 0]
-        return np.unique(hits[np.isnan(self.removal_time[hits])])
+    def step(self, spindle_reference: float) -> CutState:
+        """Before one ``mj_step``: spindle set-point, cutting force and torque, removal.
 
-    def update(self, spindle_on: bool | None = None) -> list[int]:
-        """Remove cells the running cutter touches; release the weld after the last one.
-
-        ``spindle_on`` None reads the spindle's measured speed (``|ω| ≥ min_speed``).
-        Returns the indices of the cells removed now. Call after ``mj_step`` (the
-        contacts are those of the last step).
+        Written in scalar floats where it can: it runs every physics step.
         """
-        if spindle_on is None:
-            spindle_on = abs(self.spindle_speed) >= self.min_speed
-        removed: list[int] = []
-        if spindle_on and not self.detached:
-            for k in self.touching_cells():
-                g = self.cells[k]
-                self.model.geom_contype[g] = 0
-                self.model.geom_conaffinity[g] = 0
-                self.model.geom_rgba[g, 3] = 0.0
-                self.removal_time[k] = self.data.time
-                removed.append(int(k))
-        if not self.detached and self.cells_remaining == 0:
-            self.data.eq_active[self.weld] = 0
-            self.detach_time = float(self.data.time)
-        return removed
+        model, data, grid, foam = self.model, self.data, self.grid, self.foam
+        dt = float(model.opt.timestep)
+        omega = float(data.qvel[self.spindle_dof])
+        data.ctrl[self.spindle_actuator] = self.spindle.control(spindle_reference, omega, float(data.time), dt)
 
-    def status(self) -> dict[str, object]:
+        state = CutState()
+        px_, py_, pz_ = (float(v) for v in data.geom_xpos[self.cutter])
+        mat = data.geom_xmat[self.cutter]
+        ax, ay, az = float(mat[2]), float(mat[5]), float(mat[8])  # the cutter axis (matrix column z)
+        z_mid = self._z_mid
+        # The axis point at the plate's mid-plane (the cutter stands near the plate normal).
+        along = (z_mid - pz_) / az if abs(az) > 0.5 else 0.0
+        cx, cy = px_ + along * ax, py_ + along * ay
+        z0 = pz_ - self.half_length * abs(az)
+        z1 = pz_ + self.half_length * abs(az)
+        self._recent[self._recent_i] = (cx, cy)  # (its own probe circle excludes nothing: strict < below)
+        r, probe = self.radius, self._probe
+        lo, hi = grid.lo, grid.hi
+        near = (cx + probe > lo[0] and cx - probe < hi[0] and cy + probe > lo[1] and cy - probe < hi[1]
+                and z1 > lo[2] and z0 < hi[2])
+        fx = fy = 0.0
+        torque = 0.0
+        if not near:
+            self._block = None
+        else:
+            # Velocity of the cutter centre: the body's spatial velocity (cvel, about the
+            # subtree centre of mass of its tree's root) moved to the point.
+            b = self.body
+            w = data.cvel[b]
+            o = data.subtree_com[self._root]
+            rx, ry, rz = px_ - o[0], py_ - o[1], pz_ - o[2]
+            vx = float(w[3] + w[1] * rz - w[2] * ry)
+            vy = float(w[4] + w[2] * rx - w[0] * rz)
+            speed = math.hypot(vx, vy)
+            cutting = abs(omega) >= foam.min_cutting_speed and not self.spindle.stalled
+            weights = grid.layer_weights(z0, z1)
+            i0, i1 = grid.index_range(0, cx - r, cx + r)
+            j0, j1 = grid.index_range(1, cy - r, cy + r)
+            k0, k1 = grid.index_range(2, z0, z1)
+            dx = grid.centres[0][i0:i1] - cx
+            dy = grid.centres[1][j0:j1] - cy
+            inside_xy = dx[:, None] ** 2 + dy[None, :] ** 2 <= r * r
+            zc = grid.centres[2][k0:k1]
+            block = grid.material[i0:i1, j0:j1, k0:k1]
+            inside = block & inside_xy[:, :, None] & ((zc >= z0) & (zc <= z1))[None, None, :]
+            n_inside = int(np.count_nonzero(inside))
+            if cutting and speed > 1e-6:
+                ex, ey = vx / speed, vy / speed  # feed direction; e_n = z × e_f = (−ey, ex)
+                ct, st = self._cos_t, self._sin_t
+                qx = cx + probe * (ex * ct - ey * st)
+                qy = cy + probe * (ey * ct + ex * st)
+                depth = grid.depth_at(qx, qy, weights)
+                recent = self._recent
+                reached = (((qx[:, None] - recent[None, :, 0]) ** 2 + (qy[:, None] - recent[None, :, 1]) ** 2)
+                           < self._probe2).any(axis=1)
+                depth[reached] = 0.0
+                sgn = 1.0 if omega > 0 else -1.0
+                i_cc, i_cs = float(depth @ self._i_cc), float(depth @ self._i_cs)
+                k_t = self.u
+                k_r = k_t * foam.radial_ratio
+                # F = −(v_f/ω)·[K_r·(e_f I_cc + e_n I_cs) + s·K_t·(−e_f I_cs + e_n I_cc)], linear in
+                # the velocity: F = −D·v with D = [[a, −b], [b, a]] (a: against the feed, b: across).
+                a = (k_r * i_cc - sgn * k_t * i_cs) / abs(omega)
+                bb = (k_r * i_cs + sgn * k_t * i_cc) / abs(omega)
+                # D is a stiff damper on a light tool (D·dt/m ≈ 1 at twice the default foam
+                # density): applied explicitly it diverges. Backward Euler instead: the velocity
+                # at the end of the step, v' = (I + dt·L·D)⁻¹·(v + dt·a_other), with L the
+                # cutter point's inverse inertia (J M⁻¹ Jᵀ) and a_other the acceleration of
+                # everything else (last step's, less this force's share): exact when steady.
+                vx_e, vy_e = self._implicit_velocity(vx, vy, a, bb, dt, cx, cy)
+                fx, fy = -(a * vx_e - bb * vy_e), -(bb * vx_e + a * vy_e)
+                feed = vx_e * ex + vy_e * ey  # advance along the feed direction this step
+                c = max(feed, 0.0) / abs(omega)  # feed per radian: v_f/ω = c/(2π)
+                area = r * float(depth @ self._i_c)
+                torque = c * k_t * area  # = u·v_f·A/ω
+                state = CutState(
+                    force=np.array([fx, fy, 0.0]), feed_force=-(fx * ex + fy * ey), normal_force=-fx * ey + fy * ex,
+                    torque=torque, mrr=max(feed, 0.0) * area, power=torque * abs(omega), depth=float(depth.mean()),
+                    chip=2 * math.pi * c, feed_speed=speed, cutting=area > 0.0,
+                )
+            if n_inside and cutting:
+                block[inside] = False
+                grid.cut[i0:i1, j0:j1, k0:k1][inside] = True
+                self.removed_volume += n_inside * grid.voxel_volume
+                cols = grid.removed_at[i0:i1, j0:j1]
+                hit = inside.any(axis=2) & np.isnan(cols)
+                cols[hit] = data.time
+                self._dirty = True
+                state.cutting = True
+            elif n_inside:
+                # Uncut foam against a cutter that does not cut: a spring from where the
+                # cutter first pressed in, along the direction into the material then (the
+                # overlap's centroid seen from the axis), plus damping while pressing on.
+                if self._block is None:
+                    ii, jj, _ = np.nonzero(inside)
+                    mx, my = float(dx[ii].mean()), float(dy[jj].mean())
+                    norm = math.hypot(mx, my)
+                    if norm < 1e-9:
+                        mx, my, norm = vx, vy, max(speed, 1e-12)
+                    thickness = max(float(weights.sum()), float(grid.h[2]))
+                    pen0 = n_inside * grid.voxel_volume / (2 * r * thickness)  # equivalent flat-face penetration
+                    self._block = (cx, cy, mx / norm, my / norm, pen0)
+                bx, by, nx_, ny_, pen0 = self._block
+                delta = max((cx - bx) * nx_ + (cy - by) * ny_ + pen0, 0.0)
+                magnitude = foam.block_stiffness * delta + foam.block_damping * max(vx * nx_ + vy * ny_, 0.0)
+                fx, fy = -magnitude * nx_, -magnitude * ny_
+                state = CutState(force=np.array([fx, fy, 0.0]), feed_speed=speed, blocked=True)
+            if not n_inside or cutting:
+                self._block = None
+        self._recent_i = (self._recent_i + 1) % len(self._recent)
+        self._apply(fx, fy, cx, cy, z_mid, torque, omega, dt)
+        self.state = state
+        return state
+
+    def _implicit_velocity(self, vx: float, vy: float, a: float, b: float, dt: float, x: float, y: float) -> tuple[float, float]:
+        """End-of-step in-plane velocity of the cutter point under the damper D = [[a, −b], [b, a]]."""
+        model, data = self.model, self.data
+        jac = self._jac
+        mujoco.mj_jac(model, data, jac, None, np.array([x, y, self._z_mid]), self.body)
+        jxy = jac[:2]
+        minv_jt = self._minv_jt
+        mujoco.mj_solveM(model, data, minv_jt, jxy)
+        inv_l = jxy @ minv_jt.T  # 2×2 inverse inertia at the point
+        acc = jxy @ data.qacc - inv_l @ self._applied_force[:2]  # last step's, without the cutting force
+        wx, wy = vx + dt * float(acc[0]), vy + dt * float(acc[1])
+        # (I + dt·L·D) v' = w
+        d = np.array([[a, -b], [b, a]])
+        system = np.eye(2) + dt * inv_l @ d
+        v = np.linalg.solve(system, np.array([wx, wy]))
+        return float(v[0]), float(v[1])
+
+    def _apply(self, fx: float, fy: float, x: float, y: float, z: float, torque: float, omega: float, dt: float) -> None:
+        """Add the in-plane cutter force (at (x, y, z)) to the housing and the load torque to the spindle."""
+        data = self.data
+        c = data.xipos[self.body]
+        rx, ry, rz = x - c[0], y - c[1], z - c[2]
+        wrench = np.array([fx, fy, 0.0, -rz * fy, rz * fx, rx * fy - ry * fx])  # force; r × F
+        data.xfrc_applied[self.body] += wrench - self._applied_force
+        self._applied_force = wrench
+        # The load resists the spin but cannot reverse it within one step.
+        load = -math.copysign(min(torque, self.spindle_inertia * abs(omega) / dt), omega) if torque > 0 else 0.0
+        data.qfrc_applied[self.spindle_dof] += load - self._applied_torque
+        self._applied_torque = load
+
+    def after_step(self) -> bool:
+        """After ``mj_step`` (any cadence): check connectivity, release the sample. True if freed now."""
+        if self.detached or not self._dirty:
+            return False
+        if self.data.time - self._last_check < self.foam.connectivity_period:
+            return False
+        self._dirty = False
+        self._last_check = float(self.data.time)
+        return self.check_connectivity()
+
+    def check_connectivity(self) -> bool:
+        """Label the remaining material; free the sample when the held material lost the clamp."""
+        self.checks += 1
+        labels, _ = ndimage.label(self.grid.material)
+        anchored = np.unique(labels[0])
+        anchored = anchored[anchored > 0]
+        held = labels[self._held_columns]
+        held = held[held > 0]
+        if held.size == 0 or np.isin(held, anchored).any():
+            return False
+        loose = (labels > 0) & ~np.isin(labels, anchored)
+        self.freed_volume = float(np.count_nonzero(loose)) * self.grid.voxel_volume
+        self.grid.material[loose] = False
+        self.data.eq_active[self.weld] = 0
+        self.detach_time = float(self.data.time)
+        self.model.geom_rgba[self._band, 3] = 0.0
+        return True
+
+    def status(self) -> dict[str, Any]:
         """A JSON-ready summary for run reports."""
         return {
-            "cells_total": self.n_cells,
-            "cells_remaining": self.cells_remaining,
             "detached": self.detached,
             "detach_time_s": self.detach_time,
-            "cell_removal_times_s": [None if np.isnan(t) else float(t) for t in self.removal_time],
+            "removed_volume_m3": self.removed_volume,
+            "freed_volume_m3": self.freed_volume,
+            "spindle_events": [{"time_s": t, "event": e, "speed_rad_s": w} for t, e, w in self.spindle.events],
+            "connectivity_checks": self.checks,
+            "voxels": list(self.grid.shape),
+            "voxel_size_m": [float(h) for h in self.grid.h],
         }
 
 
@@ -131,3 +481,286 @@ def _id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
     if i < 0:
         raise ValueError(f"model has no {kind.name.removeprefix('mjOBJ_').lower()} named {name!r}")
     return int(i)
+
+
+def foam_cutter(model: mujoco.MjModel, data: mujoco.MjData, layout: Any, scene: Any, arm: str = "left") -> FoamCutter:
+    """The ``FoamCutter`` of a scene built by ``scene.build_scene`` from ``layout`` and ``scene``.
+
+    The grid covers the plate outside the clamped strip (the clamp side is the anchor);
+    the held region is around the gripper's grasp point.
+    """
+    plate = layout.plate
+    bottom = plate.top_z - plate.thickness
+    x0 = plate.corner_x - plate.size[0] + layout.clamp_length
+    lo = np.array([x0, plate.corner_y, bottom])
+    hi = np.array([plate.corner_x, plate.corner_y + plate.size[1], plate.top_z])
+    grid = FoamGrid(lo, hi, scene.foam.voxel_size)
+    sample_lo = np.array([plate.corner_x - plate.sample_x, plate.corner_y])
+    sample_hi = np.array([plate.corner_x, plate.corner_y + plate.sample_y])
+    grasp = layout.grasp_pose()[:3, 3]
+    return FoamCutter(model, data, grid, scene.foam, scene.tools, plate.density, grasp, (sample_lo, sample_hi), arm=arm,
+                      kerf=(plate.kerf_polyline(), plate.kerf_width))
+
+
+def kerf_profile(
+    removed: np.ndarray, lo: np.ndarray, spacing: np.ndarray, polyline: np.ndarray, step: float, search: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The kerf as cut, measured from a column map (``FoamGrid.cut_map() > 0.5``).
+
+    At stations every ``step`` along each leg of the planned ``polyline`` (x, y), scan the
+    map across the leg within ±``search``; the run of removed columns nearest the planned
+    line gives the kerf's edges. Returns (stations (n, 2) on the plan, cut centres (n, 2),
+    widths (n,)); NaN where nothing was cut there. Stations within ``search`` of an inner
+    vertex are left out (there the scan line runs along the other leg's kerf). The cut
+    centres are the "real toolpath" measured from the cut itself (the paper's Fig. 16b);
+    their resolution is the voxel (a column is cut when its centre is inside the cutter).
+    """
+    removed = np.asarray(removed, bool)
+    lo, spacing = np.asarray(lo, float)[:2], np.asarray(spacing, float)[:2]
+    fine = float(min(spacing)) / 4
+    offsets = np.arange(-search, search + fine / 2, fine)
+    stations, centres, widths = [], [], []
+    pts = np.asarray(polyline, float)[:, :2]
+    for a, b in itertools.pairwise(pts):
+        length = float(np.linalg.norm(b - a))
+        if length <= 0:
+            continue
+        u = (b - a) / length
+        n = np.array([-u[1], u[0]])
+        for s in np.arange(step / 2, length, step):
+            p = a + s * u
+            if any(float(np.linalg.norm(p - v)) < search for v in pts[1:-1]):
+                continue  # near an inner corner the scan would run along the other leg's kerf
+            line = p[None, :] + offsets[:, None] * n[None, :]
+            ij = np.floor((line - lo) / spacing).astype(int)
+            ok = (ij[:, 0] >= 0) & (ij[:, 0] < removed.shape[0]) & (ij[:, 1] >= 0) & (ij[:, 1] < removed.shape[1])
+            cut = np.zeros(len(offsets), bool)
+            cut[ok] = removed[ij[ok, 0], ij[ok, 1]]
+            stations.append(p)
+            if not cut.any():
+                centres.append(np.full(2, np.nan))
+                widths.append(np.nan)
+                continue
+            # Runs of removed samples; the one whose centre lies nearest the planned line.
+            edges = np.flatnonzero(np.diff(np.concatenate([[0], cut.astype(int), [0]])))
+            runs = edges.reshape(-1, 2)
+            mids = np.array([(offsets[r0] + offsets[r1 - 1]) / 2 for r0, r1 in runs])
+            r0, r1 = runs[int(np.argmin(np.abs(mids)))]
+            lo_off, hi_off = offsets[r0] - fine / 2, offsets[r1 - 1] + fine / 2
+            centres.append(p + n * (lo_off + hi_off) / 2)
+            widths.append(hi_off - lo_off)
+    return np.array(stations).reshape(-1, 2), np.array(centres).reshape(-1, 2), np.array(widths)
+
+
+# ------------------------------------------------------------------ run integration
+RECORD_FIELDS = (
+    "cut_force",  # (N, 3) mean force on the cutter over the tick before the record, N
+    "cut_feed_force",  # (N,) against the feed, N
+    "cut_normal_force",  # (N,) across the feed, N
+    "cut_torque",  # (N,) cutting torque on the spindle, N·m
+    "cut_power",  # (N,) W
+    "cut_mrr",  # (N,) material removal rate, m³/s
+    "cut_depth",  # (N,) mean engaged depth, m
+    "cut_chip",  # (N,) feed per revolution, m
+    "cut_active",  # (N,) the cutter removed material during the tick
+    "cut_blocked",  # (N,) a non-cutting cutter was pressed into material
+    "cut_removed_volume",  # (N,) cumulative, m³
+    "cutter_pos",  # (N, 3) cutter centre, world
+    "spindle_reference",  # (N,) commanded speed, rad/s
+    "cut_spindle_speed",  # (N,) measured spindle speed, rad/s
+    "spindle_stalled",  # (N,) the drive tripped on a stall
+)
+
+CUTTING_ARRAYS = (*RECORD_FIELDS, "kerf_map", "kerf_map_lo", "kerf_map_spacing", "spindle_stall_times")
+
+
+@dataclass(frozen=True)
+class CuttingRecord:
+    """What the cutter did in one run: per-record series and the cut kerf (SI units).
+
+    Saved into ``trajectory.npz`` by ``arrays()`` (keys as named, plus ``kerf_map``,
+    ``kerf_map_lo``, ``kerf_map_spacing``, ``spindle_stall_times``) and restored by
+    ``from_arrays``; ``cutting_metrics`` needs nothing else.
+    """
+
+    series: dict[str, np.ndarray]
+    kerf_map: np.ndarray  # (nx, ny) fraction of each voxel column the cutter removed
+    kerf_map_lo: np.ndarray  # (3,) grid corner (x, y, z), m
+    kerf_map_spacing: np.ndarray  # (3,) voxel size, m
+    spindle_stall_times: np.ndarray  # (events,) s
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {**self.series, "kerf_map": self.kerf_map, "kerf_map_lo": self.kerf_map_lo,
+                "kerf_map_spacing": self.kerf_map_spacing, "spindle_stall_times": self.spindle_stall_times}
+
+    @classmethod
+    def from_arrays(cls, data: dict[str, np.ndarray]) -> CuttingRecord:
+        return cls({k: np.asarray(data[k]) for k in RECORD_FIELDS}, np.asarray(data["kerf_map"]),
+                   np.asarray(data["kerf_map_lo"]), np.asarray(data["kerf_map_spacing"]),
+                   np.asarray(data["spindle_stall_times"]))
+
+
+class CuttingObserver:
+    """The tick-loop hooks of ``scenario.simulate`` (duck-typed ``Observer``): the cutter's
+    ``step`` before every physics step (spindle set-point from ``sim.commands``), the
+    connectivity check after each tick, one record row every ``every`` ticks."""
+
+    def __init__(self, sim: Any, layout: Any, scene: Any, every: int = 1) -> None:
+        arm = sim.handles.tool_arm["grinder"] if hasattr(sim.handles, "tool_arm") else "left"
+        self.cutter = foam_cutter(sim.model, sim.data, layout, scene, arm=arm)
+        self.every = max(1, int(every))
+        self.rows: dict[str, list[np.ndarray]] = {k: [] for k in RECORD_FIELDS}
+        self._sum = np.zeros(10)
+        self._steps = 0
+        self._active = self._blocked = False
+        self._reference = 0.0
+
+    def start(self, sim: Any) -> None:
+        """Nothing to prepare: the cutter was built uncut."""
+
+    def before_tick(self, sim: Any) -> None:
+        if sim.tick % self.every == 0:
+            n = max(self._steps, 1)
+            mean = self._sum / n
+            c = self.cutter
+            values = {
+                "cut_force": mean[0:3], "cut_feed_force": mean[3], "cut_normal_force": mean[4], "cut_torque": mean[5],
+                "cut_power": mean[6], "cut_mrr": mean[7], "cut_depth": mean[8], "cut_chip": mean[9],
+                "cut_active": self._active, "cut_blocked": self._blocked, "cut_removed_volume": c.removed_volume,
+                "cutter_pos": sim.data.geom_xpos[c.cutter], "spindle_reference": self._reference,
+                "cut_spindle_speed": c.spindle_speed,
+                "spindle_stalled": c.stalled,
+            }
+            for key, value in values.items():
+                self.rows[key].append(np.array(value, copy=True))
+        self._sum[:] = 0.0
+        self._steps = 0
+        self._active = self._blocked = False
+
+    def before_physics_step(self, sim: Any) -> None:
+        commands = getattr(sim, "commands", None)
+        self._reference = float(getattr(commands, "spindle_speed", 0.0) or 0.0)
+        before = self.cutter.removed_volume
+        s = self.cutter.step(self._reference)
+        self._sum += (*s.force, s.feed_force, s.normal_force, s.torque, s.power, s.mrr, s.depth, s.chip)
+        self._steps += 1
+        self._active |= self.cutter.removed_volume > before
+        self._blocked |= s.blocked
+
+    def after_physics_step(self, sim: Any) -> None:
+        """Nothing per step after MuJoCo's: removal happens before it."""
+
+    def after_tick(self, sim: Any) -> str | None:
+        self.cutter.after_step()
+        return None
+
+    def close(self, sim: Any) -> None:
+        """Nothing to release."""
+
+    def record(self) -> CuttingRecord:
+        """The run's ``CuttingRecord`` (call after the run)."""
+        g = self.cutter.grid
+        series = {k: np.stack(v) if v else np.zeros((0,)) for k, v in self.rows.items()}
+        stalls = np.array([t for t, e, _ in self.cutter.spindle.events if e == "stall"], dtype=float)
+        return CuttingRecord(series, g.cut_map().astype(np.float32), g.lo.copy(), g.h.copy(), stalls)
+
+
+def cutting_metrics(record: CuttingRecord, kerf_polyline: np.ndarray, kerf_width: float) -> dict[str, Any]:
+    """Cutting force, spindle, stall, removal and the kerf as cut (a pure function of the record).
+
+    ``kerf_polyline`` is the planned cut centre line (layout); the kerf is measured from the
+    cut itself (``kerf_profile`` on ``kerf_map``): its centre's deviation from the plan and
+    its width.
+    """
+    s = record.series
+    active = s["cut_active"].astype(bool)
+    force = np.linalg.norm(s["cut_force"][:, :2], axis=1) if len(active) else np.zeros(0)
+
+    def stats(x: np.ndarray) -> dict[str, float | None]:
+        return {"mean": float(x.mean()) if x.size else None, "max": float(x.max()) if x.size else None}
+
+    out: dict[str, Any] = {
+        "force_n": stats(force[active]),
+        "feed_force_n": stats(s["cut_feed_force"][active]),
+        "normal_force_n": stats(np.abs(s["cut_normal_force"][active])),
+        "torque_nm": stats(s["cut_torque"][active]),
+        "power_w": stats(s["cut_power"][active]),
+        "removed_volume_m3": float(s["cut_removed_volume"][-1]) if len(active) else 0.0,
+        "stall_events": len(record.spindle_stall_times),
+        "stall_times_s": [float(t) for t in record.spindle_stall_times],
+        "blocked": bool(s["cut_blocked"].any()) if len(active) else False,
+    }
+    speed = s["cut_spindle_speed"]
+    if active.any():
+        ref = s["spindle_reference"][active]
+        out["spindle_speed_drop_pct"] = {
+            "mean": float(np.mean((ref - speed[active]) / ref) * 100), "max": float(np.max((ref - speed[active]) / ref) * 100)}
+    else:
+        out["spindle_speed_drop_pct"] = {"mean": None, "max": None}
+    lo, h = record.kerf_map_lo, record.kerf_map_spacing
+    stations, centres, widths = kerf_profile(record.kerf_map > 0.5, lo, h, np.asarray(kerf_polyline)[:, :2],
+                                             step=float(h[:2].min()), search=1.5 * kerf_width)
+    cut = ~np.isnan(widths)
+    dev = np.linalg.norm(centres[cut] - stations[cut], axis=1) * 1000 if cut.any() else np.zeros(0)
+    out["kerf"] = {
+        "coverage": float(cut.mean()) if cut.size else 0.0,  # fraction of the planned kerf where a cut was found
+        "width_mm": {"mean": float(widths[cut].mean() * 1000) if cut.any() else None,
+                     "min": float(widths[cut].min() * 1000) if cut.any() else None},
+        "centre_deviation_mm": {"mean": float(dev.mean()) if dev.size else None, "max": float(dev.max()) if dev.size else None},
+    }
+    return out
+
+
+def write_cutting_plots(record: CuttingRecord, t: np.ndarray, kerf_polyline: np.ndarray, kerf_width: float,
+                        out_dir: Any) -> list[Any]:
+    """``cut_kerf.png`` (the kerf as cut from above, its measured centre line against the
+    plan: the paper's Fig. 16b from the cut itself) and ``cut_force.png`` (force, torque,
+    spindle speed over time, stalls marked)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..configio import atomic_write_figure
+
+    paths = []
+    lo, h = record.kerf_map_lo, record.kerf_map_spacing
+    _, centres, widths = kerf_profile(record.kerf_map > 0.5, lo, h, np.asarray(kerf_polyline)[:, :2],
+                                             step=float(h[:2].min()), search=1.5 * kerf_width)
+    fig, ax = plt.subplots(figsize=(6, 5))
+    nx, ny = record.kerf_map.shape
+    extent = (lo[0] * 1e3, (lo[0] + nx * h[0]) * 1e3, lo[1] * 1e3, (lo[1] + ny * h[1]) * 1e3)
+    ax.imshow(record.kerf_map.T, origin="lower", extent=extent, cmap="Oranges", vmin=0, vmax=1, interpolation="nearest")
+    line = np.asarray(kerf_polyline)[:, :2] * 1e3
+    ax.plot(line[:, 0], line[:, 1], "b--", lw=1, label="planned kerf centre")
+    ok = ~np.isnan(widths)
+    ax.plot(centres[ok, 0] * 1e3, centres[ok, 1] * 1e3, "k.", ms=2, label="kerf centre measured from the cut")
+    pad = 1.5 * kerf_width * 1e3
+    ax.set_xlim(line[:, 0].min() - pad, line[:, 0].max() + pad)
+    ax.set_ylim(line[:, 1].min() - pad, line[:, 1].max() + pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_title("the cut (orange: removed fraction of each voxel column)")
+    ax.legend(loc="lower left", fontsize=7)
+    paths.append(atomic_write_figure(fig, Path(out_dir) / "cut_kerf.png"))
+
+    s = record.series
+    fig, axes = plt.subplots(3, 1, figsize=(8, 6), sharex=True)
+    axes[0].plot(t, np.linalg.norm(s["cut_force"][:, :2], axis=1), label="|F| in plane")
+    axes[0].plot(t, s["cut_feed_force"], label="against feed")
+    axes[0].plot(t, np.abs(s["cut_normal_force"]), label="|across feed|")
+    axes[0].set_ylabel("cutting force (N)")
+    axes[0].legend(fontsize=7)
+    axes[1].plot(t, s["cut_torque"] * 1e3)
+    axes[1].set_ylabel("torque (mN·m)")
+    axes[2].plot(t, s["cut_spindle_speed"], label="speed")
+    axes[2].plot(t, s["spindle_reference"], "--", label="command")
+    for ts in record.spindle_stall_times:
+        for a in axes:
+            a.axvline(ts, color="r", lw=1)
+    axes[2].set_ylabel("spindle (rad/s)")
+    axes[2].set_xlabel("time (s)")
+    axes[2].legend(fontsize=7)
+    paths.append(atomic_write_figure(fig, Path(out_dir) / "cut_force.png"))
+    return paths

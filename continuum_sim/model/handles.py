@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from ..geometry import ArmGeometry
 from ..layout import ARMS, TaskLayout
 from . import names
-from .scene import KERF_PREFIX, PLATE_BODY, SAMPLE_BODY, SAMPLE_WELD
+from .scene import PLATE_BODY, SAMPLE_BODY, SAMPLE_WELD
 from .tools import CUTTER_GEOM, GRINDER, GRIPPER, GRIPPER_CABLE, SPINDLE_JOINT
 
 IntArray = NDArray[np.int64]
@@ -28,7 +28,7 @@ IntArray = NDArray[np.int64]
 class GeomKind(IntEnum):
     """What a geom belongs to, for sorting contacts (``SceneHandles.geom_kind``)."""
 
-    OTHER = 0  # world: plate, sample, kerf cells, bench, pack, clamp, floor
+    OTHER = 0  # world: plate, sample, bench, pack, clamp, floor
     CUTTER = 1  # the grinder's cutting cylinder
     GRIPPER = 2  # any geom of the gripper tool
     FIRST_ARM = 3  # an arm (or its grinder housing) of ARMS[0]
@@ -65,7 +65,6 @@ class SceneHandles:
     plate_body: int
     sample_body: int
     sample_weld: int  # equality; inactive once the sample is cut free
-    kerf_cells: IntArray  # geom ids, in kerf order
     geom_kind: NDArray[np.int64]  # GeomKind per geom
 
     @property
@@ -94,7 +93,6 @@ class SceneHandles:
             )
             tcp[arm] = name2id(model, obj.mjOBJ_SITE, names.scoped(arm, names.TCP_SITE))
         spindle_joint = name2id(model, obj.mjOBJ_JOINT, names.scoped(grinder, GRINDER, SPINDLE_JOINT))
-        cells = sorted(g for g in range(model.ngeom) if (model.geom(g).name or "").startswith(KERF_PREFIX))
         return cls(
             arms=ARMS,
             tool_arm=tool_arm,
@@ -110,7 +108,6 @@ class SceneHandles:
             plate_body=name2id(model, obj.mjOBJ_BODY, PLATE_BODY),
             sample_body=name2id(model, obj.mjOBJ_BODY, SAMPLE_BODY),
             sample_weld=name2id(model, obj.mjOBJ_EQUALITY, SAMPLE_WELD),
-            kerf_cells=np.array(cells, dtype=np.int64),
             geom_kind=_geom_kinds(model, grinder, gripper),
         )
 

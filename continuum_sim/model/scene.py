@@ -2,14 +2,17 @@
 
 ``build_scene`` is a pure function from configuration to an MJCF tree: it holds no
 simulation state and composes the parts with ``site.attach()`` (dm_control style).
-Runtime behaviour (cells disappearing, the weld letting go) lives in ``cutting``.
+Runtime behaviour (material removed, the weld letting go) lives in ``cutting``.
 
 World: z up, pack top face at z = 0, arms along +z from ``layout.left/right``. The
 plate is static (clamped); its sample corner is a free body welded to it by the
-equality ``sample_weld``; an L-shaped row of box cells (``kerf_000`` …) fills the kerf
-between them. Foam contacts are soft (``layout.plate.contact_solref/solimp``) and win
-over the other geom's parameters by collision priority, except against the cutter,
-whose frictionless contact wins and which borrows the foam's softness.
+equality ``sample_weld``. The plate's geoms (two boxes around the sample and the kerf
+band, and the sample's box) are what the gripper, the arms and the carried sample touch;
+the cutter collides with none of them: what it cuts is the voxel foam of
+``cutting.FoamCutter`` (``SceneOptions.foam``), which covers the whole plate outside the
+clamp, sample and kerf band included. Foam contacts are soft
+(``layout.plate.contact_solref/solimp``) and win over the other geom's parameters by
+collision priority.
 
 Names (after attachment): ``left/…`` grinder arm, ``right/…`` gripper arm, tendons and
 actuators ``<arm>/cable_<section>_<c>``, sites ``<arm>/tcp``, spindle actuator
@@ -20,7 +23,6 @@ cutter geom ``left/grinder/cutter``, bodies ``plate`` and ``sample``, equality
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -36,7 +38,8 @@ from ..configio import ConfigError, require_int, require_range  # noqa: E402
 from ..geometry import ArmGeometry  # noqa: E402
 from ..layout import ARMS, TaskLayout  # noqa: E402
 from . import tools as tools_mod  # noqa: E402
-from .arm import apply_simulation_options, arm_collision_bits, build_arm, kerf_collision_bits  # noqa: E402
+from .arm import apply_simulation_options, arm_collision_bits, build_arm  # noqa: E402
+from .cutting import FoamOptions  # noqa: E402
 from .options import ModelOptions, model_geometry  # noqa: E402
 from .tools import FOAM_PRIORITY, ToolOptions  # noqa: E402
 
@@ -46,7 +49,7 @@ SCENE_MODEL = "dual_arm"
 PLATE_BODY = "plate"
 SAMPLE_BODY = "sample"
 SAMPLE_WELD = "sample_weld"
-KERF_PREFIX = "kerf_"
+KERF_BAND = ("uncut_kerf_0", "uncut_kerf_1")  # visual-only geoms of the uncut kerf band
 CAMERAS = ("overview", "closeup")
 
 
@@ -55,15 +58,14 @@ class SceneOptions:
     """Scene details beyond the task layout (*assumed*; SI units)."""
 
     tools: ToolOptions = field(default_factory=ToolOptions)
-    kerf_cell_length: float = 0.005  # target cell length along the kerf (actual: leg split evenly)
-    sample_gap: float = 0.0002  # clearance between the sample and the kerf cells
+    foam: FoamOptions = field(default_factory=FoamOptions)  # what the cutter cuts (voxels, cutting energy)
+    sample_gap: float = 0.0002  # clearance between the sample's box and the plate's boxes
     foam_friction: float = 1.0
     bench_height: float = 0.75  # floor is this far below the bench top (= pack bottom)
     render_width: int = 1280
     render_height: int = 720
 
     def __post_init__(self) -> None:
-        require_range("kerf_cell_length", self.kerf_cell_length, 0.0005, 0.1, low_inclusive=True)
         require_range("sample_gap", self.sample_gap, 0.0, 0.002, low_inclusive=True)
         require_range("foam_friction", self.foam_friction, 0.0, 10.0, low_inclusive=True)
         require_range("bench_height", self.bench_height, 0.05, 3.0, low_inclusive=True)
@@ -80,45 +82,6 @@ def look_at(position: np.ndarray, target: np.ndarray, up: tuple[float, float, fl
     x /= np.linalg.norm(x)
     y = np.cross(x, forward)
     return tuple(float(v) for v in np.concatenate([x, y]))
-
-
-def _yaw_quat(yaw: float) -> tuple[float, float, float, float]:
-    return (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
-
-
-@dataclass(frozen=True)
-class KerfCell:
-    """One removable cell: centre on the plate mid-plane, length along the kerf, yaw."""
-
-    centre: tuple[float, float, float]
-    length: float
-    yaw: float
-
-
-def kerf_cells(layout: TaskLayout, cell_length: float) -> list[KerfCell]:
-    """Cells tiling the kerf band (kerf-width wide, through the plate) along the polyline.
-
-    Each leg is split into equal cells no longer than ``cell_length``; the first leg
-    runs on by half a kerf width so the corner square is covered exactly once.
-    """
-    plate = layout.plate
-    points = plate.kerf_polyline()[:, :2]
-    half = plate.kerf_width / 2
-    z = plate.top_z - plate.thickness / 2
-    cells: list[KerfCell] = []
-    n_legs = len(points) - 1
-    for i in range(n_legs):
-        a, b = points[i], points[i + 1]
-        u = (b - a) / np.linalg.norm(b - a)
-        start = a + (half * u if i > 0 else 0.0)
-        end = b + (half * u if i < n_legs - 1 else 0.0)
-        leg = float(np.linalg.norm(end - start))
-        n = max(1, math.ceil(leg / cell_length - 1e-9))
-        yaw = math.atan2(u[1], u[0])
-        for j in range(n):
-            c = start + (j + 0.5) / n * (end - start)
-            cells.append(KerfCell((float(c[0]), float(c[1]), z), leg / n, yaw))
-    return cells
 
 
 def _plate_extents(layout: TaskLayout) -> dict[str, float]:
@@ -221,7 +184,7 @@ def _add_environment(root: mjcf.RootElement, layout: TaskLayout, scene: SceneOpt
 
 
 def _add_plate(root: mjcf.RootElement, layout: TaskLayout, scene: SceneOptions, timestep: float) -> None:
-    """Static plate (two boxes around the sample and kerf), kerf cells, welded sample."""
+    """Static plate (two boxes around the sample and the kerf band), welded sample."""
     plate = layout.plate
     ext = _plate_extents(layout)
     top, bottom = plate.top_z, plate.top_z - plate.thickness
@@ -235,20 +198,15 @@ def _add_plate(root: mjcf.RootElement, layout: TaskLayout, scene: SceneOptions, 
     body = root.worldbody.add("body", name=PLATE_BODY, pos=tuple(origin))
     _box(body, "plate_main", (ext["x0"], ext["y0"], bottom), (ext["xk"], ext["y1"], top), origin, material="foam", **foam)
     _box(body, "plate_side", (ext["xk"], ext["yk"], bottom), (ext["x1"], ext["y1"], top), origin, material="foam", **foam)
-    cell_contype, cell_conaffinity = kerf_collision_bits()
-    for i, cell in enumerate(kerf_cells(layout, scene.kerf_cell_length)):
-        body.add(
-            "geom",
-            name=f"{KERF_PREFIX}{i:03d}",
-            type="box",
-            size=(cell.length / 2, plate.kerf_width / 2, plate.thickness / 2),
-            pos=tuple(np.asarray(cell.centre) - origin),
-            quat=_yaw_quat(cell.yaw),
-            material="kerf",
-            contype=cell_contype,
-            conaffinity=cell_conaffinity,
-            **foam,
-        )
+    # The kerf band is foam too (the voxels cut it), but no contact geom: the sample has to
+    # leave through it. These two boxes only show it; the cutter hides them at detachment.
+    kerf_x = ext["xk"] + plate.kerf_width
+    kerf_y = ext["yk"] - plate.kerf_width
+    for name, lo, hi in (
+        (KERF_BAND[0], (ext["xk"], ext["y0"], bottom), (kerf_x, ext["yk"], top)),
+        (KERF_BAND[1], (kerf_x, kerf_y, bottom), (ext["x1"], ext["yk"], top)),
+    ):
+        _box(body, name, lo, hi, origin, material="kerf", contype=0, conaffinity=0, mass=0)
     for name, p in zip(("kerf_start", "kerf_corner", "kerf_end"), plate.kerf_polyline()):
         body.add("site", name=name, pos=tuple(p - origin), size=(0.002,), rgba=(1, 0, 0, 0.6))
 

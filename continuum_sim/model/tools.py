@@ -6,14 +6,13 @@ The tool centre point lies on the tool's z axis at ``geometry.tools.length(tool)
 which is where the arm builder puts its ``<arm>/tcp`` site, so planner and model agree.
 
 Grinder: a housing welded to the last disk and a spindle body on a hinge about the tool
-z axis, driven by a velocity actuator (the spindle motor sits in the pack and drives a
-flexible shaft, so only a small mass rides on the arm). The cutting geom ``cutter`` is a
-cylinder of the kerf width whose tip face centre is the TCP; it belongs to the housing
-body (the spinning ``cutter_visual`` of the same shape is what one sees). It is frictionless
-(condim 1; a spinning cutter's friction is not what we model) and carries a thin
-detection shell (``gap``; MuJoCo ≥ 3.9 detects contacts at dist < margin + gap and
-applies force only at dist < margin = 0): contacts inside the shell are reported to the
-kerf cutter but exert no force, so cells go before the cutter presses on them.
+z axis (the spindle motor sits in the pack and drives a flexible shaft, so only a small
+mass rides on the arm). Its speed loop is a PI with a torque limit: the P part is a
+MuJoCo velocity actuator with a force range, the I part ``SpindleLoop`` (which also
+reports a stall). The cutting geom ``cutter`` is a cylinder of the kerf width whose tip
+face centre is the TCP; it belongs to the housing body (the spinning ``cutter_visual``
+of the same shape is what one sees) and collides with nothing: ``cutting.FoamCutter``
+intersects it with the foam's voxels and applies the cutting force.
 
 Gripper: a palm and two jaws on slide joints along the tool x axis (q = 0 open, q > 0
 closing). One cable closes both jaws through a fixed tendon
@@ -26,7 +25,7 @@ actuator is a tension-only position loop (force range [−F, 0]) like the arm ca
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from ..glbackend import choose_gl_backend
 
@@ -47,9 +46,7 @@ GRIPPER_CABLE = "cable"  # fixed tendon closing the jaws, and its actuator's nam
 JAW_JOINTS = ("jaw_a", "jaw_b")
 PAD_GEOMS = ("pad_a", "pad_b")
 
-# Collision priority: the cutter's (frictionless) parameters win over the foam's, the
-# foam's (soft) ones over everything else it touches.
-CUTTER_PRIORITY = 2
+# Collision priority: the foam's (soft) contact wins over everything else it touches.
 JAW_OPEN_REST = 5e-4  # m, where the spring holds an open jaw (from its stop, closing)
 PAD_PRIORITY = 2  # the gripper pads' (near-hard) contact wins over the foam's
 FOAM_PRIORITY = 1
@@ -63,9 +60,20 @@ class ToolOptions:
     cutter_length: float = 0.020  # cutting cylinder length; must exceed plate thickness + overtravel
     spindle_speed: float = 1000.0  # rad/s, nominal command (~9500 rpm)
     spindle_max_speed: float = 2000.0  # rad/s, actuator ctrl range upper end
-    spindle_kv: float = 1.0e-3  # N·m·s/rad, velocity-loop gain of the spindle motor
-    spindle_armature: float = 1.0e-5  # kg·m², reflected rotor inertia (also keeps the loop stable)
-    cutter_shell: float = 0.001  # m, force-free detection shell around the cutter (geom gap)
+    spindle_kv: float = 1.0e-3  # N·m·s/rad, proportional gain of the spindle speed loop (MuJoCo velocity actuator)
+    # Integral gain of the speed loop: corner at ki/kv = 20 rad/s, far below the P loop's
+    # bandwidth kv/J ≈ 500 rad/s (J ≈ armature + cutter), so the PI adds no overshoot to speak of.
+    spindle_ki: float = 0.02  # N·m/rad
+    # Torque limit of the spindle motor (assumed): a 5 W micro motor at the nominal 1000 rad/s
+    # (the class of a 380-size DC motor behind a flexible shaft); it spins the rotor up in
+    # ~0.4 s (the plan's dwell_spin_up is 1 s). Foam cutting at the defaults needs ~2.5e-4 N·m.
+    spindle_max_torque: float = 0.005  # N·m
+    # Stalled: slower than this fraction of the command for this long (spin-up passes half
+    # speed in ~0.2 s; a load past the limit drives the speed to zero, the cutting torque
+    # P/ω growing as it falls).
+    spindle_stall_fraction: float = 0.5
+    spindle_stall_time: float = 0.5  # s
+    spindle_armature: float = 2.0e-6  # kg·m², rotor + flexible shaft (a micro motor's rotor is ~1e-6)
     gripper_open_gap: float = 0.030  # pad-to-pad gap with the jaws open
     gripper_jaw_travel: float = 0.0125  # per jaw, closing
     gripper_pad_length: float = 0.020  # pad extent along tool z (centred on the TCP)
@@ -92,8 +100,11 @@ class ToolOptions:
         require_range("spindle_speed", self.spindle_speed, 0.0, self.spindle_max_speed, low_inclusive=True)
         require_range("spindle_max_speed", self.spindle_max_speed, 0.0, 1.0e5)
         require_positive("spindle_kv", self.spindle_kv)
+        require_range("spindle_ki", self.spindle_ki, 0.0, 10.0, low_inclusive=True)
+        require_range("spindle_max_torque", self.spindle_max_torque, 0.0, 10.0)
+        require_range("spindle_stall_fraction", self.spindle_stall_fraction, 0.0, 1.0)
+        require_range("spindle_stall_time", self.spindle_stall_time, 0.0, 10.0)
         require_range("spindle_armature", self.spindle_armature, 0.0, 1.0, low_inclusive=True)
-        require_range("cutter_shell", self.cutter_shell, 0.0, 0.01, low_inclusive=True)
         require_range("gripper_open_gap", self.gripper_open_gap, 0.0, 0.3)
         require_range("gripper_jaw_travel", self.gripper_jaw_travel, 0.0, self.gripper_open_gap / 2, high_inclusive=False)
         require_range("gripper_pad_length", self.gripper_pad_length, 0.0, 0.2)
@@ -139,15 +150,12 @@ def build_grinder(
     options: ModelOptions,
     tools: ToolOptions,
     cutter_diameter: float,
-    contact_solref: tuple[float, float],
-    contact_solimp: tuple[float, float, float],
     collision: tuple[int, int] = (1, 1),
 ) -> mjcf.RootElement:
     """The grinder: housing + spinning cutter whose tip face centre is the grinder TCP.
 
-    ``cutter_diameter`` is the kerf width; the cutter takes the foam's contact softness
-    (``contact_*``) so its contacts behave like the foam's. ``collision`` is the carrying
-    arm's (contype, conaffinity): a tool never collides with its own arm.
+    ``cutter_diameter`` is the kerf width. ``collision`` is the carrying arm's (contype,
+    conaffinity): the housing never collides with its own arm; the cutter with nothing.
     """
     length = geometry.tools.grinder_length
     half_disk = geometry.disk_thickness / 2
@@ -225,10 +233,10 @@ def build_grinder(
         rgba=(0.3, 0.2, 0.1, 1.0),
         group=1,
     )
-    # The cutting geom. It sits on the housing, not on the spinning body: its contacts load
-    # the arm through the bearings, and contact normals off the spin axis cannot torque
-    # the light spindle (which made it unstable). Massless, hidden (group 3) under the
-    # spinning visual cutter of the same shape.
+    # The cutting geom: where the cutter is, not a contact. It sits on the housing (the cutting
+    # force, applied by ``cutting.FoamCutter`` to the housing body, loads the arm through the
+    # bearings) and collides with nothing: the foam it meets is the cutter's voxel material,
+    # not MuJoCo geoms. Massless, hidden (group 3) under the spinning visual cutter.
     housing.add(
         "geom",
         name=CUTTER_GEOM,
@@ -236,16 +244,16 @@ def build_grinder(
         size=(radius, tools.cutter_length / 2),
         pos=(0, 0, cutter_centre),
         mass=0,
-        condim=1,
-        priority=CUTTER_PRIORITY,
-        solref=contact_solref,
-        solimp=contact_solimp,
-        margin=0.0,
-        gap=tools.cutter_shell,
+        contype=0,
+        conaffinity=0,
         rgba=(0.85, 0.75, 0.3, 0.4),
         group=3,
     )
     spindle.add("site", name="tip", pos=(0, 0, length - housing_top), size=(0.0015,), rgba=(1, 0, 0, 1))
+    # The proportional part of the speed loop, integrated implicitly by MuJoCo (an explicit
+    # P term on the 1e-5 kg·m² rotor would be unstable at the scenario's 4 ms step); the
+    # integral part is added to the set-point by ``SpindleLoop``; the torque limit is the
+    # actuator's force range.
     root.actuator.add(
         "velocity",
         name=SPINDLE_JOINT,
@@ -253,6 +261,8 @@ def build_grinder(
         kv=tools.spindle_kv,
         ctrlrange=(0.0, tools.spindle_max_speed),
         ctrllimited=True,
+        forcerange=(-tools.spindle_max_torque, tools.spindle_max_torque),
+        forcelimited=True,
     )
     return root
 
@@ -379,11 +389,61 @@ def build_tool(
     collision: tuple[int, int] = (1, 1),
     pad_tilt_deg: float = 0.0,
 ) -> mjcf.RootElement | None:
-    """The named tool's model (``None`` for ``"none"``)."""
+    """The named tool's model (``None`` for ``"none"``).
+
+    ``contact_solref``/``contact_solimp`` (the foam's contact) are not used by either tool
+    since the cutter meets voxel material instead of contacts; kept for existing callers.
+    """
     if tool == GRINDER:
-        return build_grinder(geometry, options, tools, cutter_diameter, contact_solref, contact_solimp, collision)
+        return build_grinder(geometry, options, tools, cutter_diameter, collision)
     if tool == GRIPPER:
         return build_gripper(geometry, options, tools, collision, pad_tilt_deg)
     if tool == "none":
         return None
     raise ConfigError("tool", f"must be one of 'grinder', 'gripper', 'none' (got {tool!r})")
+
+
+@dataclass
+class SpindleLoop:
+    """The integral half of the spindle's PI speed loop, its anti-windup, and stall detection.
+
+    MuJoCo's velocity actuator supplies ``kv·(ctrl − ω)`` clipped to ±``max_torque``; this
+    adds ``∫ki·e dt`` to the torque by raising the set-point (``ctrl = ω_ref + I/kv``), and
+    stops integrating while the drive sits at its torque limit. A stall is a commanded
+    spindle turning slower than ``stall_fraction·ω_ref`` for ``stall_time``: the drive then
+    trips (ctrl 0, like a motor controller's stall protection) until the command returns to
+    zero. ``events`` lists ``(time, "stall", speed)``.
+    """
+
+    options: ToolOptions
+    integral: float = 0.0  # N·m, the I term's torque
+    stalled: bool = False
+    low_since: float | None = None
+    events: list[tuple[float, str, float]] = field(default_factory=list)
+
+    def reset(self) -> None:
+        self.integral, self.stalled, self.low_since = 0.0, False, None
+        self.events.clear()
+
+    def control(self, reference: float, speed: float, time: float, dt: float) -> float:
+        """The actuator set-point for the next step from the commanded and measured speed."""
+        o = self.options
+        if reference <= 0.0:
+            self.integral, self.stalled, self.low_since = 0.0, False, None
+            return 0.0
+        if self.stalled:
+            return 0.0
+        error = reference - speed
+        torque = o.spindle_kv * error + self.integral
+        saturated = abs(torque) >= o.spindle_max_torque and torque * error > 0
+        if not saturated:
+            self.integral = min(max(self.integral + o.spindle_ki * error * dt, -o.spindle_max_torque), o.spindle_max_torque)
+        if speed < o.spindle_stall_fraction * reference:
+            self.low_since = time if self.low_since is None else self.low_since
+            if time - self.low_since >= o.spindle_stall_time:
+                self.stalled = True
+                self.events.append((float(time), "stall", float(speed)))
+                return 0.0
+        else:
+            self.low_since = None
+        return min(max(reference + self.integral / o.spindle_kv, 0.0), o.spindle_max_speed)

@@ -121,6 +121,11 @@ def compute_metrics(trajectory: Trajectory, plan: TaskPlan, config: ScenarioConf
     tension = np.concatenate([a.cable_tension for a in tr.arms.values()], axis=1)
     out["max_cable_tension_n"] = float(tension.max())
     out["min_cable_tension_n"] = float(tension.min())
+    if tr.cutting:
+        from ..model.cutting import CuttingRecord, cutting_metrics
+
+        plate = config.layout.plate
+        out["cutting"] = cutting_metrics(CuttingRecord.from_arrays(tr.cutting), plate.kerf_polyline(), plate.kerf_width)
     out["cells_total"] = tr.n_cells
     out["cells_remaining"] = int(np.count_nonzero(np.isnan(tr.cell_removal_times)))
     out["sample_detached"] = tr.detach_time is not None

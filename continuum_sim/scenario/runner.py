@@ -68,8 +68,9 @@ def run_scenario(
     if out is not None:
         start_run_dir(out, config, root)
     sim = make_simulation(config, plan, model, controller or load_controller(controller_spec(config)))
-    cutter = CutterObserver(sim)
-    recorder = Recorder(round(1.0 / (config.simulation.record_hz * sim.control_period)), cutter)
+    every = round(1.0 / (config.simulation.record_hz * sim.control_period))
+    cutter = CutterObserver(sim, every)
+    recorder = Recorder(every, cutter)
     hooks: list[Observer] = [cutter, recorder, *observers, HealthCheck()]
     if video and out is not None:
         hooks.append(VideoObserver(sim, out / "video.mp4", config.simulation))
@@ -156,6 +157,7 @@ def make_trajectory(series: dict[str, np.ndarray], handles: SceneHandles, plan: 
         **{name: series[name] for name in Trajectory._ARRAYS if name != "arm_distance"},
         arm_distance=distance, arms=arms, stage_names=tuple(plan.stage_names), tool_arm=dict(handles.tool_arm),
         cell_removal_times=c.removal_time.copy(), detach_time=c.detach_time, stages_run=stages_run,
+        cutting=cutter.cutting.record().arrays(),
         failure=failure, wall_breakdown_s=dict(clock.laps), wall_seconds=clock.last - clock.start,
     )
 
@@ -206,3 +208,9 @@ def write_run(out_dir: Path, trajectory: Trajectory, metrics: dict[str, Any], pl
     atomic_write_text(out_dir / "metrics.json", metrics_text(metrics))
     trajectory.save(out_dir / "trajectory.npz")
     plots.write_run_plots(out_dir / "plots", trajectory.series(), plan, config)
+    if trajectory.cutting:
+        from ..model.cutting import CuttingRecord, write_cutting_plots
+
+        plate = config.layout.plate
+        write_cutting_plots(CuttingRecord.from_arrays(trajectory.cutting), trajectory.t, plate.kerf_polyline(),
+                            plate.kerf_width, out_dir / "plots")

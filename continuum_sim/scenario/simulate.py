@@ -213,16 +213,24 @@ class HealthCheck(Observer):
 
 
 class CutterObserver(Observer):
-    """Runs the kerf cutter after each tick with the plan's spindle flag (``model.cutting``)."""
+    """The foam cutter (``model.cutting.CuttingObserver``): cutting force and spindle loop before
+    every physics step, connectivity after each tick, its own record every ``every`` ticks."""
 
-    def __init__(self, sim: Simulation) -> None:
-        from ..model.cutting import KerfCutter
+    def __init__(self, sim: Simulation, every: int = 1) -> None:
+        from ..model.cutting import CuttingObserver
 
-        self.cutter = KerfCutter(sim.model, sim.data, arm=sim.handles.grinder_arm)
+        config = sim.context.config
+        self.cutting = CuttingObserver(sim, config.layout, config.scene, every)
+        self.cutter = self.cutting.cutter
+
+    def before_tick(self, sim: Simulation) -> None:
+        self.cutting.before_tick(sim)
+
+    def before_physics_step(self, sim: Simulation) -> None:
+        self.cutting.before_physics_step(sim)
 
     def after_tick(self, sim: Simulation) -> str | None:
-        self.cutter.update(bool(sim.plan.spindle_on[sim.plan_index]))
-        return None
+        return self.cutting.after_tick(sim)
 
 
 class Recorder(Observer):

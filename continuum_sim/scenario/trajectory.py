@@ -12,7 +12,7 @@ from __future__ import annotations
 import io
 import json
 import os
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -61,6 +61,9 @@ class Trajectory:
     failure: str | None  # why the simulation stopped early (divergence), None if it ran to the end
     wall_breakdown_s: dict[str, float]  # where the wall time went (machine-dependent)
     wall_seconds: float
+    # The cutter's record (model.cutting.CuttingRecord.arrays(): cut_* series, kerf_map, ...);
+    # empty for runs saved before the foam cutter.
+    cutting: dict[str, np.ndarray] = field(default_factory=dict)
 
     _ARRAYS = ("t", "stage", "plan_index", "sample_pos", "sample_rel_pos", "sample_welded", "cells_remaining",
                "spindle_speed", "contact_force", "arm_distance")
@@ -92,7 +95,7 @@ class Trajectory:
 
     def to_bytes(self) -> bytes:
         buffer = io.BytesIO()
-        np.savez_compressed(buffer, **self.series(), stage_names=np.array(self.stage_names),
+        np.savez_compressed(buffer, **self.series(), **self.cutting, stage_names=np.array(self.stage_names),
                             meta=np.array(json.dumps(self._meta())))
         return buffer.getvalue()
 
@@ -124,4 +127,12 @@ class Trajectory:
             failure=meta["failure"],
             wall_breakdown_s=dict(meta["wall_breakdown_s"]),
             wall_seconds=float(meta["wall_seconds"]),
+            cutting=_cutting_arrays(data),
         )
+
+
+def _cutting_arrays(data: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The cutter's record among the saved arrays (none in runs saved before the foam cutter)."""
+    from ..model.cutting import CUTTING_ARRAYS
+
+    return {key: data[key] for key in CUTTING_ARRAYS if key in data}

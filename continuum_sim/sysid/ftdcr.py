@@ -125,7 +125,7 @@ def import_ftdcr(path: str | os.PathLike[str], pull_file: str | os.PathLike[str]
     order = servo_order(labels, servo)
     delta = -s[:, order] / 1000.0
     pos = (tip - np.array([neutral[0], neutral[1], 0.0])) / 1000.0 + np.asarray(mount)
-    info = RecordingInfo(mode="quasi_static", settle_s=0.2, gravity=False, tool="none", align="offset",
+    info = RecordingInfo(mode="quasi_static", settle_s=0.3, gravity=False, tool="none", align="offset",
                          source=f"OpenCR-MuJoCo FTDCR v4 ({Path(path).name}, MIT), imported by continuum_sim.sysid.ftdcr")
     return Recording(arm, t - t[0], delta, pos, None, None, None, None, labels, info)
 

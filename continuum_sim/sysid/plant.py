@@ -16,16 +16,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
 from ..configio import ConfigError
-from ..glbackend import choose_gl_backend
-
-choose_gl_backend()
-
-import mujoco
-
 from ..kinematics import straight_cable_lengths
 from ..model import names
 from ..model.options import model_geometry

@@ -21,17 +21,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import mujoco
 import numpy as np
+from mujoco import rollout
 from numpy.typing import NDArray
 
 from ..configio import atomic_write_text
-from ..glbackend import choose_gl_backend
-
-choose_gl_backend()
-
-import mujoco
-from mujoco import rollout
-
 from ..scenario.config import ScenarioConfig
 from .data import Recording
 from .plant import ReplayModel, build_replay_model, control_matrix
@@ -210,7 +205,7 @@ def plot_paths(rec: Recording, preds: dict[str, Prediction], path: Path, title: 
 
 
 def write_replay_folder(out: Path, config: ScenarioConfig, rec: Recording, pred: Prediction, metrics: dict[str, Any],
-                        plant: ReplayModel | None = None, label: str = "replayed") -> None:
+                        label: str = "replayed") -> None:
     """A run folder: resolved config, metrics, time series, plots (like ``run``'s)."""
     out.mkdir(parents=True, exist_ok=True)
     (out / "plots").mkdir(exist_ok=True)
@@ -249,5 +244,5 @@ def run_replay(config: ScenarioConfig, rec: Recording, out: str | os.PathLike[st
     metrics["tool"] = plant.tool
     metrics["gravity"] = rec.info.gravity
     metrics["cpu_s"] = time.process_time() - t0
-    write_replay_folder(Path(out), config, rec, pred, metrics, plant)
+    write_replay_folder(Path(out), config, rec, pred, metrics)
     return metrics
