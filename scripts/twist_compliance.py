@@ -1,0 +1,45 @@
+"""What the twist DoF does to an arm held open loop under gravity: hinge_pair (universal joint) vs hinge_triple (ball joint).
+
+The gravity_sag evaluation (grinder payload, 3 s settles) in a planar and a spatial
+pose, today's leaves and the strain-limited ones. Prints a Markdown table for docs/model.md:
+
+    python scripts/twist_compliance.py
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from continuum_sim.model.stiffness import strain_limited_geometry  # noqa: E402
+from continuum_sim.scenario.config import ScenarioConfig  # noqa: E402
+from continuum_sim.sweep.evaluations import GravitySag  # noqa: E402
+from continuum_sim.sweep.static import evaluate_static  # noqa: E402
+
+POSES = {"planar (60,0,30,0,0,0)°": (60, 0, 30, 0, 0, 0), "spatial (45,30,60,200,50,100)°": (45, 30, 60, 200, 50, 100)}
+
+
+def main() -> int:
+    base = ScenarioConfig.default()
+    leaves = {"today (r = 0)": base.arm, "strain-limited": strain_limited_geometry(base.arm)}
+    print("| pose | leaves | joint | tool error without gravity (mm) | with gravity (mm) | max cable tension (N) |")
+    print("|---|---|---|---|---|---|")
+    for pose_name, pose in POSES.items():
+        for leaf_name, arm in leaves.items():
+            for joint, central in (("hinge_pair", "universal"), ("hinge_triple", "ball")):
+                config = dataclasses.replace(
+                    base, arm=dataclasses.replace(arm, central_joint=central), model=dataclasses.replace(base.model, joint=joint)
+                )
+                r = evaluate_static(config, GravitySag(q_deg=pose, tool="grinder", settle_s=3.0))
+                print(
+                    f"| {pose_name} | {leaf_name} | {joint} ({central}) | {r['shape_error_mm']:.2f} | {r['pcc_error_mm']:.2f} "
+                    f"| {r['max_cable_tension_n']:.1f} |"
+                )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
