@@ -42,10 +42,20 @@ def main(argv: list[str] | None = None) -> int:
                 r, _, _ = compare_release(rod, k, damping_scale=scale)
                 rows.append(
                     {
-                        "rod": name, "case": k, "variant": variant, "tau": taus[k] * scale, "links": r.n_links,
-                        "tip_rms_pct": r.tip_rms_pct, "tip_max_pct": r.tip_max_pct, "mid_rms_pct": r.mid_rms_pct,
-                        "f_ref": r.frequency_ref, "f_model": r.frequency_model, "f_err_pct": r.frequency_error_pct,
-                        "decay_ref": r.decay_ref, "decay_model": r.decay_model, "decay_err_pct": r.decay_error_pct,
+                        "rod": name,
+                        "case": k,
+                        "variant": variant,
+                        "tau": taus[k] * scale,
+                        "links": r.n_links,
+                        "tip_rms_pct": r.tip_rms_pct,
+                        "tip_max_pct": r.tip_max_pct,
+                        "mid_rms_pct": r.mid_rms_pct,
+                        "f_ref": r.frequency_ref,
+                        "f_model": r.frequency_model,
+                        "f_err_pct": r.frequency_error_pct,
+                        "decay_ref": r.decay_ref,
+                        "decay_model": r.decay_model,
+                        "decay_err_pct": r.decay_error_pct,
                     }
                 )
                 print(f"{name} {k} {variant}: tip RMS {r.tip_rms_pct:.3f} % L", file=sys.stderr, flush=True)

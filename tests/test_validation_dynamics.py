@@ -24,7 +24,7 @@ from continuum_sim.validation.sorosim_dynamics import (
 from continuum_sim.validation.statics import StaticSolver
 
 choose_gl_backend()
-import mujoco
+import mujoco  # noqa: E402
 
 
 def _held_tip(rod, case, swap: bool) -> np.ndarray:

@@ -20,7 +20,14 @@ def test_quick_report_rows_all_pass(tmp_path):
     failing = [f"{r.check}: {r.quantity} = {r.measured} (tolerance {r.tolerance})" for r in report.rows if not r.passed]
     assert not failing, failing
     names = {r.check for r in report.rows}
-    for expected in ("cosserat.analytic", "sorosim.dynamics.steel", "sorosim.dynamics.tpu", "sorosim.statics", "tendon.section2", "modes.section2"):
+    for expected in (
+        "cosserat.analytic",
+        "sorosim.dynamics.steel",
+        "sorosim.dynamics.tpu",
+        "sorosim.statics",
+        "tendon.section2",
+        "modes.section2",
+    ):
         assert expected in names
     paths = write_report(report, tmp_path, plots=False)
     data = json.loads((tmp_path / "report.json").read_text())

@@ -91,9 +91,9 @@ class CosseratRobot:
 
     pieces: tuple[RodPiece, ...]
     tendons: tuple[Tendon, ...]
-    gravity: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    tip_force: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    tip_moment: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gravity: tuple[float, ...] = (0.0, 0.0, 0.0)
+    tip_force: tuple[float, ...] = (0.0, 0.0, 0.0)
+    tip_moment: tuple[float, ...] = (0.0, 0.0, 0.0)
     point_masses: tuple[tuple[float, float], ...] = field(default_factory=tuple)  # (s, kg): lumped masses
 
     @property
@@ -104,8 +104,7 @@ class CosseratRobot:
         """Arc lengths where the integrand changes: piece ends, terminations, point masses."""
         ends = np.cumsum([p.length for p in self.pieces])
         pts = [0.0, *ends, *(t.end for t in self.tendons), *(s for s, _ in self.point_masses)]
-        pts = np.unique(np.round(np.clip(np.asarray(pts, dtype=float), 0.0, self.length), 12))
-        return pts
+        return np.unique(np.round(np.clip(np.asarray(pts, dtype=float), 0.0, self.length), 12))
 
     def piece_at(self, s: float) -> RodPiece:
         ends = np.cumsum([p.length for p in self.pieces])

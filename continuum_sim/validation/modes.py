@@ -56,13 +56,38 @@ def beam_frequencies(
     from scipy.linalg import eigh
 
     h = length / elements
-    ke = ei / h**3 * np.array([[12, 6 * h, -12, 6 * h], [6 * h, 4 * h * h, -6 * h, 2 * h * h], [-12, -6 * h, 12, -6 * h], [6 * h, 2 * h * h, -6 * h, 4 * h * h]])
-    me = mass_per_length * h / 420.0 * np.array(
-        [[156, 22 * h, 54, -13 * h], [22 * h, 4 * h * h, 13 * h, -3 * h * h], [54, 13 * h, 156, -22 * h], [-13 * h, -3 * h * h, -22 * h, 4 * h * h]]
+    ke = (
+        ei
+        / h**3
+        * np.array(
+            [
+                [12, 6 * h, -12, 6 * h],
+                [6 * h, 4 * h * h, -6 * h, 2 * h * h],
+                [-12, -6 * h, 12, -6 * h],
+                [6 * h, 2 * h * h, -6 * h, 4 * h * h],
+            ]
+        )
+    )
+    me = (
+        mass_per_length
+        * h
+        / 420.0
+        * np.array(
+            [
+                [156, 22 * h, 54, -13 * h],
+                [22 * h, 4 * h * h, 13 * h, -3 * h * h],
+                [54, 13 * h, 156, -22 * h],
+                [-13 * h, -3 * h * h, -22 * h, 4 * h * h],
+            ]
+        )
     )
     # rotary inertia (consistent, from the slope field)
-    mr = rotary_inertia_per_length / (30.0 * h) * np.array(
-        [[36, 3 * h, -36, 3 * h], [3 * h, 4 * h * h, -3 * h, -h * h], [-36, -3 * h, 36, -3 * h], [3 * h, -h * h, -3 * h, 4 * h * h]]
+    mr = (
+        rotary_inertia_per_length
+        / (30.0 * h)
+        * np.array(
+            [[36, 3 * h, -36, 3 * h], [3 * h, 4 * h * h, -3 * h, -h * h], [-36, -3 * h, 36, -3 * h], [3 * h, -h * h, -3 * h, 4 * h * h]]
+        )
     )
     n = 2 * (elements + 1)
     k = np.zeros((n, n))
@@ -127,7 +152,7 @@ def model_bending_frequencies(geometry: ArmGeometry, options: ModelOptions, coun
     jacp, jacr = np.zeros((3, nv)), np.zeros((3, nv))
     mujoco.mj_jacBody(m, d, jacp, jacr, tip)
     radius = geometry.sections[-1].disk_diameter / 2.0
-    freqs = []
+    freqs: list[float] = []
     for w, v in zip(omega, vec.T):
         if w <= 1e-6:
             continue
@@ -136,10 +161,10 @@ def model_bending_frequencies(geometry: ArmGeometry, options: ModelOptions, coun
         twist = abs(jacr[2] @ q) * radius
         if lateral > twist:
             freqs.append(w / (2.0 * math.pi))
-    freqs = np.unique(np.round(np.sort(freqs), 6))
+    unique = np.unique(np.round(np.sort(freqs), 6))
     # x/y pairs (and ± conjugates collapse in unique): cluster within 1 %
     clusters: list[list[float]] = []
-    for f in freqs:
+    for f in unique:
         if clusters and f <= clusters[-1][0] * 1.01:
             clusters[-1].append(f)
         else:

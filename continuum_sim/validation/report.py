@@ -99,7 +99,10 @@ def _cosserat_analytic(quick: bool) -> list[Row]:
     worst_k, worst_tip = 0.0, 0.0
     tensions = (0.01, 0.1, 1.0) if quick else (0.001, 0.01, 0.1, 1.0, 5.0)
     for tau in tensions:
-        robot = CosseratRobot((RodPiece(length, ei, ei, gj if math.isfinite(gj) else 10 * ei, 0.0),), (Tendon((r * math.cos(0.7), r * math.sin(0.7)), length, tau),))
+        robot = CosseratRobot(
+            (RodPiece(length, ei, ei, gj if math.isfinite(gj) else 10 * ei, 0.0),),
+            (Tendon((r * math.cos(0.7), r * math.sin(0.7)), length, tau),),
+        )
         sol = CosseratSolver(robot).solve()
         kappa = tau * r / ei
         k = np.linalg.norm(sol.curvatures[:, :2], axis=1)
@@ -112,7 +115,7 @@ def _cosserat_analytic(quick: bool) -> list[Row]:
     ]
 
 
-def _cosserat_beam(quick: bool) -> list[Row]:
+def _cosserat_beam(_quick: bool) -> list[Row]:
     from .cosserat import CosseratRobot, CosseratSolver, RodPiece
 
     ei, length, mu = 0.05, 0.2, 0.05
@@ -139,7 +142,15 @@ def _sorosim_dynamics(rod_name: str) -> Callable[[bool], list[Row]]:
         name = f"sorosim.dynamics.{rod_name}"
         return [
             row(name, ref, "tip-position RMS over the record (worst case)", max(r.tip_rms_pct for r in results), 1.0, "% L"),
-            row(name, ref, "first swing frequency error (worst case)", max((r.frequency_error_pct for r in results), key=abs), 2.0, "%", "+.2f"),
+            row(
+                name,
+                ref,
+                "first swing frequency error (worst case)",
+                max((r.frequency_error_pct for r in results), key=abs),
+                2.0,
+                "%",
+                "+.2f",
+            ),
             row(name, ref, "decay-rate error (worst case)", max((r.decay_error_pct for r in results), key=abs), 10.0, "%", "+.2f"),
         ]
 
@@ -177,6 +188,8 @@ def _tendon_sweep(section: int, segments: int = 0) -> Callable[[bool], list[Row]
         geo = section_geometry(arm, (section,))
         statics = ArmStatics(geo, options)
         t_max = max_single_tension(arm, section, options)
+        fractions: tuple[float, ...]
+        gravities: tuple[tuple[float, float, float], ...]
         if quick:
             fractions, gravities = (0.25,), ((-9.81, 0.0, 0.0),)
         elif segments:  # the discretisation study: fewer cases, each costlier
@@ -205,7 +218,7 @@ def _tendon_sweep(section: int, segments: int = 0) -> Callable[[bool], list[Row]
     return run
 
 
-def _tendon_arm(quick: bool) -> list[Row]:
+def _tendon_arm(_quick: bool) -> list[Row]:
     from .tendon_arm import ArmStatics, compare, max_single_tension
 
     arm, options = _arm_and_options()
@@ -227,16 +240,28 @@ def _tendon_arm(quick: bool) -> list[Row]:
 
 
 def _modes(section: int, second: bool = False) -> Callable[[bool], list[Row]]:
-    def run(quick: bool) -> list[Row]:
+    def run(_quick: bool) -> list[Row]:
         from .modes import compare_section_modes
 
         arm, options = _arm_and_options()
         c = compare_section_modes(arm, section, options, count=2)
         ref = f"clamped Rayleigh beam + held ropes (k_Θ = {c.cable_spring:.1f} N·m/rad), section {section}, {options.joint}"
         errs = c.errors_pct()
-        out = [row(f"modes.section{section}", ref, f"1st bending mode {c.model[0]:.2f} vs {c.reference[0]:.2f} Hz", errs[0], 5.0, "%", "+.2f")]
+        out = [
+            row(f"modes.section{section}", ref, f"1st bending mode {c.model[0]:.2f} vs {c.reference[0]:.2f} Hz", errs[0], 5.0, "%", "+.2f")
+        ]
         if second:
-            out.append(row(f"modes.section{section}", ref, f"2nd bending mode {c.model[1]:.2f} vs {c.reference[1]:.2f} Hz", errs[1], 5.0, "%", "+.2f"))
+            out.append(
+                row(
+                    f"modes.section{section}",
+                    ref,
+                    f"2nd bending mode {c.model[1]:.2f} vs {c.reference[1]:.2f} Hz",
+                    errs[1],
+                    5.0,
+                    "%",
+                    "+.2f",
+                )
+            )
         return out
 
     return run
@@ -251,11 +276,21 @@ def _beam_section(quick: bool) -> list[Row]:
 
     arm, options = _arm_and_options()
     rows = []
-    for k in ((arm.n_sections - 1,) if quick else range(arm.n_sections)):
+    for k in (arm.n_sections - 1,) if quick else range(arm.n_sections):
         model, beam = build_section_cantilever(arm, k, options)
         data = mujoco.MjData(model)
         f = linear_natural_frequencies(model, data, 1)[0]
-        rows.append(row("beam.section", f"Rayleigh cantilever (cables off), section {k}", "1st bending frequency error", 100 * (f / beam.first_frequency() - 1), 1.0, "%", "+.2f"))
+        rows.append(
+            row(
+                "beam.section",
+                f"Rayleigh cantilever (cables off), section {k}",
+                "1st bending frequency error",
+                100 * (f / beam.first_frequency() - 1),
+                1.0,
+                "%",
+                "+.2f",
+            )
+        )
     return rows
 
 
@@ -270,7 +305,13 @@ def _fe_segment(quick: bool) -> list[Row]:
         if arm.backbone != "flexure":
             break
         leaf = LeafSection(sec.hinge_width, sec.hinge_thickness, arm.material.youngs_modulus, arm.material.poisson_ratio)
-        fe = SegmentFE(leaf, free_length=sec.leaf_length(arm.disk_thickness), leaf_radius=sec.leaf_radius, leaf_angles_deg=sec.leaf_angles_deg, joint=arm.central_joint).stiffness()
+        fe = SegmentFE(
+            leaf,
+            free_length=sec.leaf_length(arm.disk_thickness),
+            leaf_radius=sec.leaf_radius,
+            leaf_angles_deg=sec.leaf_angles_deg,
+            joint=arm.central_joint,
+        ).stiffness()
         kx, _, kz = segment_stiffness(arm, sec)
         ref = f"leaf frame-element FE (fe_segment), section {k}"
         rows.append(row("fe.segment", ref, "bending stiffness error", 100 * (kx / fe[0, 0] - 1), 10.0, "%", "+.2f"))
@@ -340,10 +381,13 @@ class Report:
             + ".\n\n| check | reference | quantity | tolerance | measured | result | reproduce |\n|---|---|---|---|---|---|---|\n"
         )
         body = "".join(
-            f"| {r.check} | {r.reference} | {r.quantity} | {r.tolerance} | {r.measured} | {'pass' if r.passed else '**FAIL**'} | `{self.commands.get(r.check, '')}` |\n"
+            f"| {r.check} | {r.reference} | {r.quantity} | {r.tolerance} | {r.measured} "
+            f"| {'pass' if r.passed else '**FAIL**'} | `{self.commands.get(r.check, '')}` |\n"
             for r in self.rows
         )
-        errs = "".join(f"| {name} | — | — | — | {msg} | **ERROR** | `{self.commands.get(name, '')}` |\n" for name, msg in self.errors.items())
+        errs = "".join(
+            f"| {name} | — | — | — | {msg} | **ERROR** | `{self.commands.get(name, '')}` |\n" for name, msg in self.errors.items()
+        )
         cpu = "\nCPU seconds per check: " + ", ".join(f"{k} {v:.1f}" for k, v in self.seconds.items()) + "\n"
         return head + body + errs + cpu
 

@@ -208,7 +208,9 @@ class ReleaseComparison:
         return 100.0 * (self.decay_model / self.decay_ref - 1.0)
 
 
-def compare_release(rod: SorosimRod, index: int, n_links: int | None = None, damping_scale: float = 1.0) -> tuple[ReleaseComparison, ReleaseCase, Trajectory]:
+def compare_release(
+    rod: SorosimRod, index: int, n_links: int | None = None, damping_scale: float = 1.0
+) -> tuple[ReleaseComparison, ReleaseCase, Trajectory]:
     """Simulate release ``index`` of ``rod`` and measure it against the record."""
     case = load_release(rod, index)
     sim = simulate_release(rod, case, n_links, damping_scale=damping_scale)

@@ -26,7 +26,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ..geometry import ArmGeometry
 from ..model.options import ModelOptions, model_geometry
@@ -130,7 +130,7 @@ class ArmStatics:
         self.tip_body = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, f"arm/disk_{n_disks}")
         self.base_body = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, "arm/base")
 
-    def solve(self, tensions: Array, gravity: Array = (0.0, 0.0, 0.0)) -> ArmPose:
+    def solve(self, tensions: ArrayLike, gravity: ArrayLike = (0.0, 0.0, 0.0)) -> ArmPose:
         """Equilibrium under cable tensions (N, section-major, 3 per section) and gravity."""
         full = np.zeros(self.model.ntendon)
         full[self.cables] = np.asarray(tensions, dtype=float)
@@ -171,11 +171,13 @@ def section_rigidities(geometry: ArmGeometry, scale: float = 1.0) -> list[tuple[
     return out
 
 
-def cosserat_arm(geometry: ArmGeometry, options: ModelOptions, tensions: Array, gravity: Array = (0.0, 0.0, 0.0)) -> CosseratRobot:
+def cosserat_arm(geometry: ArmGeometry, options: ModelOptions, tensions: ArrayLike, gravity: ArrayLike = (0.0, 0.0, 0.0)) -> CosseratRobot:
     """The Cosserat description of ``geometry``'s sections under cable ``tensions``."""
     holes = geometry.cable_holes()
+    gravity = np.asarray(gravity, dtype=float)
     pieces = tuple(
-        RodPiece(sec.length, eix, eiy, gj, 0.0) for sec, (eix, eiy, gj) in zip(geometry.sections, section_rigidities(geometry, options.stiffness_scale))
+        RodPiece(sec.length, eix, eiy, gj, 0.0)
+        for sec, (eix, eiy, gj) in zip(geometry.sections, section_rigidities(geometry, options.stiffness_scale))
     )
     ends = np.cumsum([sec.length for sec in geometry.sections])
     tendons = tuple(
@@ -186,7 +188,9 @@ def cosserat_arm(geometry: ArmGeometry, options: ModelOptions, tensions: Array, 
     return CosseratRobot(pieces, tendons, tuple(float(g) for g in gravity), point_masses=tuple(disk_masses(geometry, options)))
 
 
-def solve_cosserat(geometry: ArmGeometry, options: ModelOptions, tensions: Array, gravity: Array = (0.0, 0.0, 0.0)) -> CosseratSolution:
+def solve_cosserat(
+    geometry: ArmGeometry, options: ModelOptions, tensions: ArrayLike, gravity: ArrayLike = (0.0, 0.0, 0.0)
+) -> CosseratSolution:
     return CosseratSolver(cosserat_arm(geometry, options, tensions, gravity)).solve()
 
 
@@ -201,7 +205,7 @@ def max_single_tension(geometry: ArmGeometry, section: int, options: ModelOption
 class TendonComparison:
     label: str
     tensions: tuple[float, ...]
-    gravity: tuple[float, float, float]
+    gravity: tuple[float, ...]
     length: float
     tip_error_pct: float  # |tip_model − tip_cosserat| / L, %
     bend_model: float  # rad
@@ -216,7 +220,8 @@ class TendonComparison:
         return 100.0 * (self.bend_model / self.bend_reference - 1.0)
 
 
-def compare(statics: ArmStatics, tensions: Array, gravity: Array, label: str = "") -> TendonComparison:
+def compare(statics: ArmStatics, tensions: ArrayLike, gravity: ArrayLike, label: str = "") -> TendonComparison:
+    tensions, gravity = np.asarray(tensions, dtype=float), np.asarray(gravity, dtype=float)
     pose = statics.solve(tensions, gravity)
     ref = solve_cosserat(statics.geometry, statics.options, tensions, gravity)
     ref_axis = ref.rotations[-1][:, 2]
