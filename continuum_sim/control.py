@@ -15,6 +15,7 @@ state is read from ``MjData`` each control tick.
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from dataclasses import dataclass
@@ -22,7 +23,6 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.linalg.lapack import dposv as _dposv
 
 from . import kinematics as kin
 from .configio import ConfigError, require_positive, require_range
@@ -144,16 +144,6 @@ class ArmController:
         self._set_points: tuple[tuple[float, ...], bytes, Array] | None = None  # (w, extra, lengths) of the last tick
         self.last_command: list[float] = []  # bending coordinates of the last set-points (for recording)
 
-    def reset(self) -> None:
-        self.correction[:] = 0.0
-        self.proportional[:] = 0.0
-        self.extra[:] = 0.0
-        self._holding = False
-
-    def commanded_bending(self, q_plan: Array) -> Array:
-        """Planned shape plus the closed-loop correction, kept inside the bending limits."""
-        return np.array(self._commanded(q_plan))
-
     def _commanded(self, q_plan) -> list[float]:
         # Scalar per section: this runs twice per arm per control tick.
         w = []
@@ -273,9 +263,17 @@ class ArmController:
                 c[2 * k : 2 * k + 2] *= self.max_correction / norm
 
 
+@functools.cache
+def _dposv():  # noqa: ANN202 - returns the LAPACK routine
+    """LAPACK's dposv, imported on first use: loading a configuration should not import scipy."""
+    from scipy.linalg.lapack import dposv
+
+    return dposv
+
+
 def _solve_spd(A: Array, b: Array) -> Array:
     """A⁻¹ b for a symmetric positive definite A: LAPACK's posv, a third of np.linalg.solve's overhead."""
-    _, x, info = _dposv(A, b)
+    _, x, info = _dposv()(A, b)
     if info != 0:
         return np.linalg.solve(A, b)
     return x

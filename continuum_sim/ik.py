@@ -22,7 +22,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -31,8 +31,17 @@ from . import kinematics as kin
 from .configio import require_int, require_positive, require_range
 from .geometry import ArmGeometry
 
-# LAPACK's Cholesky routines: a tenth of np.linalg.solve's call overhead on 6×6.
-from scipy.linalg.lapack import dposv as _dposv, dpotrf as _dpotrf, dpotrs as _dpotrs
+# LAPACK's Cholesky routines (a tenth of np.linalg.solve's call overhead on 6×6), loaded by
+# the first solver: importing scipy costs ~0.3 s, which loading a configuration should not pay.
+_dposv = _dpotrf = _dpotrs = None
+
+
+def _load_lapack() -> None:
+    global _dposv, _dpotrf, _dpotrs
+    if _dposv is None:
+        from scipy.linalg.lapack import dposv, dpotrf, dpotrs
+
+        _dposv, _dpotrf, _dpotrs = dposv, dpotrf, dpotrs
 
 Array = NDArray[np.float64]
 Orientation = Literal["full", "axis"]
@@ -180,6 +189,55 @@ def _wrap(a: float) -> float:
     return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi)) if not -math.pi < a <= math.pi else a
 
 
+class Evaluation(NamedTuple):
+    """The weighted residual at solver variables x (``IKSolver.evaluate``)."""
+
+    residual: list[float]
+    jacobian: Array | None  # None when derivatives were not asked for
+    position_error: float  # m
+    orientation_error: float  # rad
+    rotation: list[float]  # tool rotation, row-major 3×3
+    position: list[float]  # tool position
+
+
+class Iterate(NamedTuple):
+    """Where a Levenberg-Marquardt run ended (``IKSolver._lm``)."""
+
+    x: list[float]
+    position_error: float
+    orientation_error: float
+    iterations: int
+    rotation: list[float]
+    position: list[float]
+
+
+class ChordIterate(NamedTuple):
+    """Where the warm-start chord iteration ended (``IKSolver._chord``)."""
+
+    x: list[float]
+    residual: list[float]
+    jacobian: Array | None
+    position_error: float
+    orientation_error: float
+    rotation: list[float]
+    position: list[float]
+    iterations: int
+    converged: bool
+
+
+class Solution(NamedTuple):
+    """``IKSolver.solve``'s answer in solver variables (``solve_ik`` wraps it in an ``IKResult``)."""
+
+    x: list[float]
+    position_error: float
+    orientation_error: float
+    iterations: int
+    success: bool
+    message: str
+    rotation: list[float]
+    position: list[float]
+
+
 class IKSolver:
     """IK for one arm, one tool, one mode, in the arm base frame; reusable across targets.
 
@@ -197,6 +255,7 @@ class IKSolver:
         options: IKOptions | None = None,
     ) -> None:
         _check_mode(orientation, phase)
+        _load_lapack()
         self.geometry = geometry
         self.orientation = orientation
         self.phase = phase
@@ -279,8 +338,8 @@ class IKSolver:
         R = target[:3, :3]
         return (float(P[0]), float(P[1]), float(P[2]), [float(v) for v in R.ravel()])
 
-    def evaluate(self, x, tgt, derivatives: bool = True):
-        """``(r, J, position_error, orientation_error, R, p)`` at solver variables ``x``."""
+    def evaluate(self, x, tgt, derivatives: bool = True) -> Evaluation:
+        """The residual, its Jacobian and the errors at solver variables ``x``."""
         k1, k2 = self.options.position_weight, self.options.orientation_weight
         w = self.to_w(x)
         cached = self._fk_cache
@@ -317,7 +376,7 @@ class IKSolver:
             eo = angle
             r = [k1 * dx, k1 * dy, k1 * dz, k2 * ex, k2 * ey, k2 * ez]
             if not derivatives:
-                return r, None, ep, eo, R, p
+                return Evaluation(r, None, ep, eo, R, p)
             m = 2 * self.S
             rows = [k1 * v for v in Jw[: 3 * m]]
             if 1e-8 < angle < 3.0:
@@ -352,7 +411,7 @@ class IKSolver:
             eo = angle
             r = [k1 * dx, k1 * dy, k1 * dz, gain * c1, gain * c2]
             if not derivatives:
-                return r, None, ep, eo, R, p
+                return Evaluation(r, None, ep, eo, R, p)
             m = 2 * self.S
             rows = [k1 * v for v in Jw[: 3 * m]]
             # d(a·v) = ω · (a × v) for v = x*, y*, z*.
@@ -380,13 +439,13 @@ class IKSolver:
             J = np.array(rows).reshape(5, m)
         if self.phase == "planar":
             J = J[:, 0::2] * self._cpsi + J[:, 1::2] * self._spsi
-        return r, J, ep, eo, R, p
+        return Evaluation(r, J, ep, eo, R, p)
 
     # ---------------------------------------------------------------- LM core
     TAU = 1e-10  # initial damping relative to the largest diagonal entry of JᵀJ
 
-    def _lm(self, x0, tgt, max_iterations: int, max_step: float):
-        """Projected Levenberg-Marquardt from ``x0``; returns (x, ep, eo, iterations, R, p).
+    def _lm(self, x0, tgt, max_iterations: int, max_step: float) -> Iterate:
+        """Projected Levenberg-Marquardt from ``x0``.
 
         Damping starts tiny (a Gauss-Newton step) and adapts by the gain ratio (Nielsen's
         rule); the floor ``1e-12·tr(JᵀJ)`` keeps the step out of the null space in the
@@ -455,18 +514,18 @@ class IKSolver:
                 nu *= 2.0
                 if lam > 1e10 * scale:
                     break
-        return x, ep, eo, its, R, p
+        return Iterate(x, ep, eo, its, R, p)
 
     CHORD_ITERATIONS = 8
     CHORD_MIN_GAIN = 0.3  # a chord step must shrink the residual norm at least this much
 
-    def _chord(self, x0, tgt, max_step: float):
+    def _chord(self, x0, tgt, max_step: float) -> ChordIterate:
         """Warm-start fast path: Newton's chord method (Jacobian frozen at the start).
 
         From a nearby start the frozen Jacobian is accurate to O(distance), so each step
         gains about as many digits as the start was close, at the price of an FK without
         derivatives (~3× cheaper than FK with the Jacobian) and a triangular solve.
-        Returns ``(x, r, J, ep, eo, R, p, its, converged)``; when a step does not shrink the
+        Returns a ``ChordIterate``; when a step does not shrink the
         residual by ``CHORD_MIN_GAIN`` the caller continues with full LM from the result.
         """
         opts = self.options
@@ -476,14 +535,14 @@ class IKSolver:
         r, J, ep, eo, R, p = self.evaluate(x, tgt)
         its = 0
         if ep <= stop_p and eo <= stop_o:
-            return x, r, J, ep, eo, R, p, its, True
+            return ChordIterate(x, r, J, ep, eo, R, p, its, True)
         JT = J.T
         A = JT.dot(J)
         scale = float(A.trace()) / self.n_vars
         A[self._diag] += 1e-12 * scale + 1e-300
         c, info = _dpotrf(A)
         if info != 0:
-            return x, r, J, ep, eo, R, p, its, False
+            return ChordIterate(x, r, J, ep, eo, R, p, its, False)
         norm = math.sqrt(sum(v * v for v in r))
         J0 = J
         while its < self.CHORD_ITERATIONS:
@@ -505,8 +564,8 @@ class IKSolver:
             x, r, ep, eo, R, p, norm = x_new, r_new, ep_new, eo_new, R_new, p_new, norm_new
             J0 = None
             if ep <= stop_p and eo <= stop_o:
-                return x, r, None, ep, eo, R, p, its, True
-        return x, r, J0, ep, eo, R, p, its, False
+                return ChordIterate(x, r, None, ep, eo, R, p, its, True)
+        return ChordIterate(x, r, J0, ep, eo, R, p, its, False)
 
     def _ok(self, ep: float, eo: float) -> bool:
         return ep <= self.options.position_tolerance and eo <= self.options.orientation_tolerance
@@ -551,10 +610,9 @@ class IKSolver:
 
     # ---------------------------------------------------------------- public
     def solve(self, target: Array, x0=None, *, fallback: bool = True, max_step: float | None = None,
-              max_iterations: int | None = None) -> tuple[list[float], float, float, int, bool, str, list, list]:
+              max_iterations: int | None = None) -> Solution:
         """Solve for a validated (4, 4) target in the arm frame.
 
-        Returns ``(x, position_error, orientation_error, iterations, success, message, R, p)``.
         With ``x0`` the solve is warm-started there; ``fallback`` then allows cold starts
         if the warm start fails.
         """
@@ -571,21 +629,21 @@ class IKSolver:
                 x, ep, eo, its, R, p = self._lm(x, tgt, max(iters - its, 1), step)
                 total += its
             if self._ok(ep, eo):
-                return x, ep, eo, total, True, "converged (warm start)", R, p
+                return Solution(x, ep, eo, total, True, "converged (warm start)", R, p)
             best = (self._weighted(ep, eo), x, ep, eo, R, p)
             if not fallback:
-                return x, ep, eo, total, False, self._failure_message(target, ep, eo), R, p
+                return Solution(x, ep, eo, total, False, self._failure_message(target, ep, eo), R, p)
         X = self.seed_table()[0]
         for idx in self._seed_order(target)[: opts.n_starts]:
             x, ep, eo, its, R, p = self._lm(X[idx], tgt, iters, step)
             total += its
             if self._ok(ep, eo):
-                return x, ep, eo, total, True, "converged (cold start)", R, p
+                return Solution(x, ep, eo, total, True, "converged (cold start)", R, p)
             cand = (self._weighted(ep, eo), x, ep, eo, R, p)
             if best is None or cand[0] < best[0]:
                 best = cand
         _, x, ep, eo, R, p = best
-        return x, ep, eo, total, False, self._failure_message(target, ep, eo), R, p
+        return Solution(x, ep, eo, total, False, self._failure_message(target, ep, eo), R, p)
 
     def _failure_message(self, target: Array, ep: float, eo: float) -> str:
         distance = float(np.linalg.norm(target[:3, 3]))
@@ -780,10 +838,6 @@ class PathSolution:
     def original(self) -> Array:
         """Mask of the rows that are input toolpath points (not inserted)."""
         return np.isclose(self.source, np.round(self.source))
-
-
-class PathError(ValueError):
-    """A toolpath could not be followed within the step limits or the workspace."""
 
 
 def solve_path(

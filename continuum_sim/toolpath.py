@@ -157,9 +157,6 @@ class TaskPlan:
     def stage_mask(self, name: str) -> NDArray[np.bool_]:
         return self.stage == self.stage_names.index(name)
 
-    def segment_mask(self, name: str) -> NDArray[np.bool_]:
-        return self.segment == self.segment_names.index(name)
-
 
 def _unknown_arm(arm: str) -> Array:
     raise KeyError(f"the plan has no arm {arm!r}")

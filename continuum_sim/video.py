@@ -34,7 +34,6 @@ from typing import Any
 
 import numpy as np
 
-from .glbackend import choose_gl_backend
 
 # Tessellation used for the video: MuJoCo's defaults are (28, 16); thin cables and 40 mm
 # disks look the same at 640×480 with (14, 6), and software GL renders ~2× faster.
@@ -136,7 +135,6 @@ def _spawn_ignoring_sigint(pool: ProcessPoolExecutor, workers: int) -> None:
 
 
 def _worker_init(model_bytes: bytes, cameras: list[str], width: int, height: int, fps: float) -> None:
-    choose_gl_backend()
     model = pickle.loads(model_bytes)
     _WORKER["renderer"] = _FrameRenderer(model, cameras, width, height)
     _WORKER["fps"] = fps
@@ -196,7 +194,6 @@ class VideoRecorder:
         quality: str = "fast",
         chunk_frames: int = 60,
     ) -> None:
-        choose_gl_backend()
         import mujoco
 
         if quality not in VIDEO_SLICES:

@@ -88,9 +88,7 @@ def build_arm(geometry: ArmGeometry, options: ModelOptions, name: str, tool: str
     (tip frame) and ``tcp`` (tool length along the tip z); tendons and actuators
     ``cable_<section>_<c>`` (actuator control = commanded cable length, m).
     """
-    from ..glbackend import choose_gl_backend
 
-    choose_gl_backend()
     from dm_control import mjcf
 
     if tool not in ("grinder", "gripper", "none"):

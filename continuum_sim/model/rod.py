@@ -120,9 +120,7 @@ class RodSpec:
 
 def build_rod(spec: RodSpec):
     """MJCF root of the rod clamped at the origin along +x; gravity off, no contacts."""
-    from ..glbackend import choose_gl_backend
 
-    choose_gl_backend()
     from dm_control import mjcf
 
     root = mjcf.RootElement(model="rod")

@@ -28,20 +28,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..glbackend import choose_gl_backend
+from dm_control import mjcf
 
-choose_gl_backend()  # before dm_control/mujoco read MUJOCO_GL
-
-from dm_control import mjcf  # noqa: E402
-
-from ..configio import ConfigError, require_int, require_range  # noqa: E402
-from ..geometry import ArmGeometry  # noqa: E402
-from ..layout import ARMS, TaskLayout  # noqa: E402
-from . import tools as tools_mod  # noqa: E402
-from .arm import apply_simulation_options, arm_collision_bits, build_arm  # noqa: E402
-from .cutting import FoamOptions  # noqa: E402
-from .options import ModelOptions, model_geometry  # noqa: E402
-from .tools import FOAM_PRIORITY, ToolOptions  # noqa: E402
+from ..configio import ConfigError, require_int, require_range
+from ..geometry import ArmGeometry
+from ..layout import ARMS, TaskLayout
+from . import tools as tools_mod
+from .arm import apply_simulation_options, arm_collision_bits, build_arm
+from .cutting import FoamOptions
+from .options import ModelOptions, model_geometry
+from .tools import FOAM_PRIORITY, ToolOptions
 
 ArmBuilder = Callable[[ArmGeometry, ModelOptions, str, str], mjcf.RootElement]
 

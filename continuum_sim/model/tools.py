@@ -27,15 +27,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from ..glbackend import choose_gl_backend
+from dm_control import mjcf
 
-choose_gl_backend()  # before dm_control/mujoco read MUJOCO_GL
-
-from dm_control import mjcf  # noqa: E402
-
-from ..configio import ConfigError, require_positive, require_range, require_solimp, require_solref  # noqa: E402
-from ..geometry import ArmGeometry  # noqa: E402
-from .options import ModelOptions  # noqa: E402
+from ..configio import ConfigError, require_positive, require_range, require_solimp, require_solref
+from ..geometry import ArmGeometry
+from .options import ModelOptions
 
 GRINDER = "grinder"
 GRIPPER = "gripper"

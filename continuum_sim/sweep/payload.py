@@ -14,14 +14,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..glbackend import choose_gl_backend
 from ..model import names
 from ..model.arm import arm_collision_bits
 from ..model.options import model_geometry
 
-choose_gl_backend()
-import mujoco  # noqa: E402
-from dm_control import mjcf  # noqa: E402
+import mujoco
+from dm_control import mjcf
 
 PAYLOAD_BODY = "payload"
 

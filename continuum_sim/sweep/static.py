@@ -28,22 +28,19 @@ from typing import Any
 import numpy as np
 
 from ..configio import to_dict
-from ..glbackend import choose_gl_backend
 
-choose_gl_backend()
+import mujoco
+from mujoco import rollout
 
-import mujoco  # noqa: E402
-from mujoco import rollout  # noqa: E402
-
-from .. import kinematics as kin  # noqa: E402
-from ..control import ArmController  # noqa: E402
-from ..model import names  # noqa: E402
-from ..model.arm import build_single_arm_model, section_links  # noqa: E402
-from ..model.options import ModelOptions, model_geometry  # noqa: E402
-from ..model.state import set_arm_configuration  # noqa: E402
-from ..scenario.config import ScenarioConfig  # noqa: E402
-from .evaluations import Evaluation, EvaluationFailed, GravitySag, TipDeflection  # noqa: E402
-from .payload import PAYLOAD_BODY, add_payload, tool_payload  # noqa: E402
+from .. import kinematics as kin
+from ..control import ArmController
+from ..model import names
+from ..model.arm import build_single_arm_model, section_links
+from ..model.options import ModelOptions, model_geometry
+from ..model.state import set_arm_configuration
+from ..scenario.config import ScenarioConfig
+from .evaluations import Evaluation, EvaluationFailed, GravitySag, TipDeflection
+from .payload import PAYLOAD_BODY, add_payload, tool_payload
 
 FULL = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 CTRL = int(mujoco.mjtState.mjSTATE_CTRL)

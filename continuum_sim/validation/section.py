@@ -77,9 +77,7 @@ def section_beam(geometry: ArmGeometry, section: int, options: ModelOptions) -> 
 
 def build_section_cantilever(geometry: ArmGeometry, section: int, options: ModelOptions):
     """Compiled (model, beam) of one section clamped at its base, tendons and gravity off."""
-    from ..glbackend import choose_gl_backend
 
-    choose_gl_backend()
     import mujoco
 
     from ..model.arm import build_single_arm_model
