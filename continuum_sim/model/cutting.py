@@ -49,50 +49,8 @@ import mujoco
 import numpy as np
 from scipy import ndimage
 
-from ..configio import require_int, require_positive, require_range
+from .scene_options import FoamOptions
 from .tools import CUTTER_GEOM, GRINDER, SPINDLE_JOINT, SpindleLoop, ToolOptions
-
-
-@dataclass(frozen=True)
-class FoamOptions:
-    """The foam's cutting properties and the voxel model (values and sources: docs/cutting.md)."""
-
-    # Specific cutting energy u = K_t at reference_density (assumed): 3 × the compressive
-    # strength of rigid PU insulation foam of ~30 kg/m³ (≥ 150 kPa, BS 4841 boards per BRUFMA;
-    # ≥ 170 kPa for 28 kg/m³ spray foam, CAN/ULC S705.1), the ratio u/σ_y ≈ 3 that metals show
-    # (Al 6061: σ_y 275 MPa, u ≈ 0.7-1 J/mm³).
-    specific_energy: float = 0.5e6  # J/m³
-    reference_density: float = 30.0  # kg/m³
-    # u ∝ ρ^1.5: the Gibson–Ashby scaling of a cellular solid's crushing strength (Cellular
-    # Solids, 1997, σ_pl ∝ (ρ*/ρ_s)^1.5), assumed to carry over to cutting.
-    density_exponent: float = 1.5
-    radial_ratio: float = 0.5  # K_r/K_t (assumed; metals 0.2-0.6 with sharp edges, a blunt burr ploughs more)
-    voxel_size: float = 0.001  # m, target edge (rounded so whole voxels tile the plate)
-    engagement_points: int = 24  # angles on the leading half circle
-    recent_window: float = 0.25  # s of cutter positions remembered exactly (sub-voxel jitter makes no chip)
-    min_cutting_speed: float = 50.0  # rad/s: a slower spindle rubs instead of cutting
-    block_stiffness: float = 2000.0  # N/m, uncut foam against a cutter that does not cut (assumed, numerically stable at 4 ms)
-    block_damping: float = 10.0  # N·s/m
-    connectivity_period: float = 0.1  # s between connectivity checks (only after material was removed; ~3 ms each at 1 mm)
-    grip_radius: float = 0.006  # m: the material under the jaws, around the grasp point
-
-    def __post_init__(self) -> None:
-        require_positive("specific_energy", self.specific_energy)
-        require_positive("reference_density", self.reference_density)
-        require_range("density_exponent", self.density_exponent, 0.0, 5.0, low_inclusive=True)
-        require_range("radial_ratio", self.radial_ratio, 0.0, 5.0, low_inclusive=True)
-        require_range("voxel_size", self.voxel_size, 0.0002, 0.01, low_inclusive=True)
-        require_int("engagement_points", self.engagement_points, 4, 1000)
-        require_range("recent_window", self.recent_window, 0.0, 5.0, low_inclusive=True)
-        require_range("min_cutting_speed", self.min_cutting_speed, 0.0, 1.0e4, low_inclusive=True)
-        require_range("block_stiffness", self.block_stiffness, 0.0, 1.0e6, low_inclusive=True)
-        require_range("block_damping", self.block_damping, 0.0, 1.0e4, low_inclusive=True)
-        require_range("connectivity_period", self.connectivity_period, 0.0, 10.0, low_inclusive=True)
-        require_range("grip_radius", self.grip_radius, 0.0, 0.1)
-
-    def cutting_energy(self, density: float) -> float:
-        """u (J/m³) of a foam of ``density`` (kg/m³)."""
-        return self.specific_energy * (density / self.reference_density) ** self.density_exponent
 
 
 class FoamGrid:

@@ -24,20 +24,19 @@ cutter geom ``left/grinder/cutter``, bodies ``plate`` and ``sample``, equality
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from dm_control import mjcf
 
-from ..configio import ConfigError, require_int, require_range
+from ..configio import ConfigError
 from ..geometry import ArmGeometry
 from ..layout import ARMS, TaskLayout
 from . import tools as tools_mod
 from .arm import apply_simulation_options, arm_collision_bits, build_arm
-from .cutting import FoamOptions
 from .options import ModelOptions, model_geometry
-from .tools import FOAM_PRIORITY, ToolOptions
+from .scene_options import SceneOptions
+from .tools import FOAM_PRIORITY
 
 ArmBuilder = Callable[[ArmGeometry, ModelOptions, str, str], mjcf.RootElement]
 
@@ -49,27 +48,6 @@ KERF_BAND = ("uncut_kerf_0", "uncut_kerf_1")  # visual-only geoms of the uncut k
 CAMERAS = ("overview", "closeup")
 
 
-@dataclass(frozen=True)
-class SceneOptions:
-    """Scene details beyond the task layout (*assumed*; SI units)."""
-
-    tools: ToolOptions = field(default_factory=ToolOptions)
-    foam: FoamOptions = field(default_factory=FoamOptions)  # what the cutter cuts (voxels, cutting energy)
-    sample_gap: float = 0.0002  # clearance between the sample's box and the plate's boxes
-    foam_friction: float = 1.0
-    bench_height: float = 0.75  # floor is this far below the bench top (= pack bottom)
-    render_width: int = 1280
-    render_height: int = 720
-
-    def __post_init__(self) -> None:
-        require_range("sample_gap", self.sample_gap, 0.0, 0.002, low_inclusive=True)
-        require_range("foam_friction", self.foam_friction, 0.0, 10.0, low_inclusive=True)
-        require_range("bench_height", self.bench_height, 0.05, 3.0, low_inclusive=True)
-        require_int("render_width", self.render_width, 16, 8192)
-        require_int("render_height", self.render_height, 16, 8192)
-
-
-# ------------------------------------------------------------------ small helpers
 def look_at(position: np.ndarray, target: np.ndarray, up: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> tuple[float, ...]:
     """MJCF ``xyaxes`` of a camera at ``position`` looking at ``target`` (MuJoCo cameras look along −z)."""
     forward = np.asarray(target, float) - np.asarray(position, float)

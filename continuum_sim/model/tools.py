@@ -29,9 +29,10 @@ from dataclasses import dataclass, field
 
 from dm_control import mjcf
 
-from ..configio import ConfigError, require_positive, require_range, require_solimp, require_solref
+from ..configio import ConfigError, require_positive
 from ..geometry import ArmGeometry
 from .options import ModelOptions
+from .scene_options import ToolOptions
 
 GRINDER = "grinder"
 GRIPPER = "gripper"
@@ -46,99 +47,6 @@ PAD_GEOMS = ("pad_a", "pad_b")
 JAW_OPEN_REST = 5e-4  # m, where the spring holds an open jaw (from its stop, closing)
 PAD_PRIORITY = 2  # the gripper pads' (near-hard) contact wins over the foam's
 FOAM_PRIORITY = 1
-
-
-@dataclass(frozen=True)
-class ToolOptions:
-    """Tool details the paper does not give (*assumed*; all SI units)."""
-
-    housing_radius: float = 0.015  # grinder housing radius (inside the distal disk)
-    cutter_length: float = 0.020  # cutting cylinder length; must exceed plate thickness + overtravel
-    spindle_speed: float = 1000.0  # rad/s, nominal command (~9500 rpm)
-    spindle_max_speed: float = 2000.0  # rad/s, actuator ctrl range upper end
-    spindle_kv: float = 1.0e-3  # N·m·s/rad, proportional gain of the spindle speed loop (MuJoCo velocity actuator)
-    # Integral gain of the speed loop: corner at ki/kv = 20 rad/s, far below the P loop's
-    # bandwidth kv/J ≈ 500 rad/s (J ≈ armature + cutter), so the PI adds no overshoot to speak of.
-    spindle_ki: float = 0.02  # N·m/rad
-    # Torque limit of the spindle motor (assumed): a 5 W micro motor at the nominal 1000 rad/s
-    # (the class of a 380-size DC motor behind a flexible shaft); it spins the rotor up in
-    # ~0.4 s (the plan's dwell_spin_up is 1 s). Foam cutting at the defaults needs ~2.5e-4 N·m.
-    spindle_max_torque: float = 0.005  # N·m
-    # Stalled: slower than this fraction of the command for this long (spin-up passes half
-    # speed in ~0.2 s; a load past the limit drives the speed to zero, the cutting torque
-    # P/ω growing as it falls).
-    spindle_stall_fraction: float = 0.5
-    spindle_stall_time: float = 0.5  # s
-    spindle_armature: float = 2.0e-6  # kg·m², rotor + flexible shaft (a micro motor's rotor is ~1e-6)
-    gripper_open_gap: float = 0.030  # pad-to-pad gap with the jaws open
-    gripper_jaw_travel: float = 0.0125  # per jaw, closing
-    gripper_pad_length: float = 0.020  # pad extent along tool z (centred on the TCP)
-    gripper_pad_width: float = 0.016  # pad extent along tool y
-    # Pad thickness: the finger plates stand this far behind the pad faces, clear of a plate
-    # gripped at the grasp tilt (30° over the 12 mm grasp depth brings it ~8 mm closer).
-    gripper_pad_thickness: float = 0.010
-    gripper_spring: float = 20.0  # N/m, opening spring per jaw
-    gripper_damping: float = 2.0  # N·s/m per jaw
-    gripper_kp: float = 400.0  # N/m, cable position-loop gain
-    gripper_max_force: float = 2.0  # N, largest cable tension (foam sample < 1 g)
-    gripper_cable_speed: float = 0.05  # m/s, the gripper motor's speed limit on its cable command
-    pad_friction: float = 1.0  # sliding friction of the jaw pads
-    # Pad contact (wins over the foam's soft contact): stiff enough that the 2 N grip sinks
-    # ~1 mm into the 0.7 g sample. MuJoCo scales contact softness by the bodies' masses;
-    # with the foam's own parameters the pads sank 3-5 mm and the jaws closed onto their
-    # stops. Harder still (0.99, 0.999) tripled the solver iterations while carrying.
-    pad_solref: tuple[float, float] = (0.008, 1.0)
-    pad_solimp: tuple[float, float, float] = (0.95, 0.99, 0.001)
-
-    def __post_init__(self) -> None:
-        require_range("housing_radius", self.housing_radius, 0.0, 0.1)
-        require_range("cutter_length", self.cutter_length, 0.0, 0.5)
-        require_range("spindle_speed", self.spindle_speed, 0.0, self.spindle_max_speed, low_inclusive=True)
-        require_range("spindle_max_speed", self.spindle_max_speed, 0.0, 1.0e5)
-        require_positive("spindle_kv", self.spindle_kv)
-        require_range("spindle_ki", self.spindle_ki, 0.0, 10.0, low_inclusive=True)
-        require_range("spindle_max_torque", self.spindle_max_torque, 0.0, 10.0)
-        require_range("spindle_stall_fraction", self.spindle_stall_fraction, 0.0, 1.0)
-        require_range("spindle_stall_time", self.spindle_stall_time, 0.0, 10.0)
-        require_range("spindle_armature", self.spindle_armature, 0.0, 1.0, low_inclusive=True)
-        require_range("gripper_open_gap", self.gripper_open_gap, 0.0, 0.3)
-        require_range("gripper_jaw_travel", self.gripper_jaw_travel, 0.0, self.gripper_open_gap / 2, high_inclusive=False)
-        require_range("gripper_pad_length", self.gripper_pad_length, 0.0, 0.2)
-        require_range("gripper_pad_width", self.gripper_pad_width, 0.0, 0.2)
-        require_range("gripper_pad_thickness", self.gripper_pad_thickness, 0.0, 0.05)
-        require_range("gripper_spring", self.gripper_spring, 0.0, 1.0e5, low_inclusive=True)
-        require_range("gripper_damping", self.gripper_damping, 0.0, 1.0e4, low_inclusive=True)
-        require_positive("gripper_kp", self.gripper_kp)
-        require_positive("gripper_max_force", self.gripper_max_force)
-        require_positive("gripper_cable_speed", self.gripper_cable_speed)
-        require_solref("pad_solref", self.pad_solref)
-        require_solimp("pad_solimp", self.pad_solimp)
-        require_range("pad_friction", self.pad_friction, 0.0, 10.0, low_inclusive=True)
-
-    @property
-    def gripper_closed_gap(self) -> float:
-        """Smallest pad-to-pad gap (both jaws at full travel)."""
-        return self.gripper_open_gap - 2 * self.gripper_jaw_travel
-
-    @property
-    def gripper_cable_open(self) -> float:
-        """Cable command that lets the springs open the jaws fully."""
-        return 0.0
-
-    @property
-    def gripper_cable_closed(self) -> float:
-        """Cable command past full closure by twice the force limit's stretch (Fmax / kp).
-
-        Whatever the jaws' positions on the object (one may rest on its end stop when the
-        object sits off-centre), the position loop then saturates: the grip force is the
-        force limit, not the small remainder of a command that ends at full closure.
-        """
-        return -2 * self.gripper_jaw_travel - 2 * self.gripper_max_force / self.gripper_kp
-
-    def gripper_cable_for_gap(self, gap: float) -> float:
-        """Cable command (tendon length) that closes the pads to ``gap`` (clipped to travel)."""
-        gap = min(max(gap, self.gripper_closed_gap), self.gripper_open_gap)
-        return gap - self.gripper_open_gap
 
 
 def build_grinder(

@@ -18,7 +18,7 @@ from ..control import ControlConfig
 from ..geometry import ArmGeometry
 from ..layout import TaskLayout
 from ..model.options import ModelOptions
-from ..model.scene import SceneOptions
+from ..model.scene_options import SceneOptions
 from ..toolpath import PlanConfig
 
 
