@@ -45,12 +45,39 @@ class Prediction:
     tension: Array  # (N, ncables) N
 
 
+def _friction_of(config: ScenarioConfig):
+    """The config's cable friction when it acts (μ > 0), else None (model/friction.py)."""
+    friction = getattr(config.model, "cable_friction", None)
+    return friction if friction is not None and friction.mu > 0.0 else None
+
+
 def _rollout_sampled(plants: list[ReplayModel], controls: list[Array], sample_steps: NDArray[np.int_],
-                     nthread: int) -> list[Array]:
-    """Roll every model out under its control rows (nstep, nu); sensordata at ``sample_steps``."""
+                     nthread: int, friction=None) -> list[Array]:
+    """Roll every model out under its control rows (nstep, nu); sensordata at ``sample_steps``.
+
+    ``friction``: cable friction installed on the (single) rollout data, whose stick/slip
+    state then carries over the chunks (one model per call).
+    """
     models = [p.model for p in plants]
     nstep = controls[0].shape[0]
     datas = [mujoco.MjData(models[0]) for _ in range(max(1, min(nthread, len(models))))]
+    handle = None
+    if friction is not None:
+        from ..model.friction import install_cable_friction
+
+        if len(models) != 1:
+            raise ValueError("cable friction: one model per rollout call")
+        datas = datas[:1]
+        handle = install_cable_friction(models[0], datas[0], friction)
+    try:
+        return _rollout_chunks(models, datas, controls, sample_steps, nstep)
+    finally:
+        if handle is not None:
+            handle.uninstall()
+            handle.check()
+
+
+def _rollout_chunks(models, datas, controls, sample_steps, nstep) -> list[Array]:
     state = np.empty((len(models), mujoco.mj_stateSize(models[0], FULL)))
     for i, m in enumerate(models):
         d = mujoco.MjData(m)
@@ -85,8 +112,11 @@ def simulate(configs: list[ScenarioConfig], rec: Recording, nthread: int = 1,
     info = rec.info
     if plants is None:
         plants = [build_replay_model(c, rec.arm, info.tool, info.gravity) for c in configs]
-    if not _same_structure([p.model for p in plants]):
+    frictions = [_friction_of(c) for c in configs]
+    if len(configs) > 1 and (any(f is not None for f in frictions) or not _same_structure([p.model for p in plants])):
+        # Friction keeps its stick/slip state per MuJoCo data: one rollout per variant.
         return [simulate([c], rec, 1, [p])[0] for c, p in zip(configs, plants)]
+    friction = frictions[0]
     dt = plants[0].model.opt.timestep
     settle = max(1, round(info.settle_s / dt))
     n = len(rec.time)
@@ -105,7 +135,7 @@ def simulate(configs: list[ScenarioConfig], rec: Recording, nthread: int = 1,
             run = control_matrix(c, p, delta, grip, spin)
             controls.append(np.concatenate([np.repeat(pre, settle, axis=0), run]))
         sample = settle + np.arange(steps)
-        sens = _rollout_sampled(plants, controls, sample, nthread)
+        sens = _rollout_sampled(plants, controls, sample, nthread, friction)
         out = []
         for s in sens:
             pos = np.stack([np.interp(rec.time, times, s[:, j]) for j in range(3)], axis=1)
@@ -119,7 +149,7 @@ def simulate(configs: list[ScenarioConfig], rec: Recording, nthread: int = 1,
         rows = control_matrix(c, p, rec.commands, rec.gripper, rec.spindle)
         controls.append(np.repeat(rows, settle, axis=0))
     sample = settle * np.arange(1, n + 1) - 1
-    sens = _rollout_sampled(plants, controls, sample, nthread)
+    sens = _rollout_sampled(plants, controls, sample, nthread, friction)
     return [Prediction(s[:, 0:3].copy(), s[:, 3:7].copy(), -s[:, 7:7 + rec.n_cables] + 0.0) for s in sens]
 
 
