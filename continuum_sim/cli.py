@@ -338,8 +338,6 @@ def _cmd_ik(args: argparse.Namespace) -> int:
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from .configio import atomic_write_text, check_output_dir, save_toml
     from .plotting_ik import plot_plan_overview, plot_plan_timeseries, plot_shape_parameters
     from .toolpath import arm_clearance, plan_task, save_plan, solve_planar_demo
@@ -388,8 +386,6 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
 
 def _cmd_workspace(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from .configio import atomic_write_text, check_output_dir
     from .toolpath import gripper_poses, grinder_poses
     from .workspace import WorkspaceConfig, check_poses, compute_workspace, plot_workspace

@@ -135,6 +135,9 @@ def _spawn_ignoring_sigint(pool: ProcessPoolExecutor, workers: int) -> None:
 
 
 def _worker_init(model_bytes: bytes, cameras: list[str], width: int, height: int, fps: float) -> None:
+    from .lifetime import die_with
+
+    die_with()  # a SIGKILLed (or interrupted mid-start) run leaves no render worker behind
     model = pickle.loads(model_bytes)
     _WORKER["renderer"] = _FrameRenderer(model, cameras, width, height)
     _WORKER["fps"] = fps
@@ -235,7 +238,13 @@ class VideoRecorder:
                 initializer=_worker_init,
                 initargs=(pickle.dumps(render_model), self.cameras, width, height, fps),
             )
-            _spawn_ignoring_sigint(self._pool, self.workers)
+            try:
+                _spawn_ignoring_sigint(self._pool, self.workers)
+            except BaseException:  # Ctrl-C delivered right after the spawn: stop the workers, then stop
+                for process in list((getattr(self._pool, "_processes", None) or {}).values()):
+                    process.kill()
+                self._pool.shutdown(wait=False, cancel_futures=True)
+                raise
 
     def _snapshot(self, data: Any) -> FrameState:
         """The frame's state; the colour table only when it changed or a new chunk starts

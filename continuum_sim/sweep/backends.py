@@ -10,7 +10,6 @@ never needs the sweep folder. No backend decides what a variant computes: that i
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import multiprocessing
 import os
 import signal
@@ -24,6 +23,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from ..configio import ConfigError, to_dict
+from ..lifetime import die_with
 from .spec import SweepSpec, Variant
 from .worker import describe, evaluate_payload, warm_up
 
@@ -48,34 +48,6 @@ def payload(spec: SweepSpec, variant: Variant, run_root: str | None) -> dict[str
 
 
 # ------------------------------------------------------------------ local processes
-DRIVER_POLL_S = 1.0  # a worker whose driver is gone exits within about this long
-
-
-def _die_with_parent() -> None:
-    """Linux: the kernel sends SIGKILL to this process when its parent (the forkserver) exits."""
-    if not sys.platform.startswith("linux"):
-        return
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG = 1
-    except (OSError, AttributeError):
-        pass
-
-
-def _watch_driver(driver_pid: int, parent_pid: int) -> None:
-    """Fallback on any OS: exit once the driver process is gone or this worker was re-parented."""
-    while True:
-        time.sleep(DRIVER_POLL_S)
-        try:
-            os.kill(driver_pid, 0)
-        except ProcessLookupError:
-            os._exit(1)
-        except PermissionError:
-            pass
-        if os.getppid() != parent_pid:
-            os._exit(1)
-
-
 def worker_init(driver_pid: int) -> None:
     """Pool initializer: never outlive the driver (a SIGKILLed sweep leaves no orphan workers), then warm up.
 
@@ -83,8 +55,7 @@ def worker_init(driver_pid: int) -> None:
     worker would print a traceback): workers ignore SIGINT and the driver stops them.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _die_with_parent()
-    threading.Thread(target=_watch_driver, args=(driver_pid, os.getppid()), daemon=True, name="watch-driver").start()
+    die_with(driver_pid)  # the forkserver is the parent; the driver is what must be alive
     sys.setrecursionlimit(max(sys.getrecursionlimit(), 10_000))  # deep models (200 segments per section)
     warm_up()
 
