@@ -194,3 +194,27 @@ def test_stopped_sweep_driver_leaves_no_workers(tmp_path, how):
     for pid in left:  # do not leave them behind even when the test fails
         os.kill(pid, signal.SIGKILL)
     assert not left, f"orphan processes {left}"
+
+
+def test_sigkill_of_a_video_run_leaves_no_render_workers(tmp_path):
+    out = tmp_path / "run"
+    proc = subprocess.Popen([*CLI, "run", "--quiet", "--video", "--out", str(out)], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, env=_env(), process_group=0)
+    end = time.monotonic() + 120
+    helpers: set[int] = set()
+    while len(helpers) < 2 and time.monotonic() < end:  # resource tracker + at least one render worker
+        assert proc.poll() is None
+        time.sleep(0.2)
+        helpers = _children(proc.pid)
+    assert len(helpers) >= 2
+    time.sleep(1.0)
+    proc.kill()
+    proc.wait()
+    end = time.monotonic() + 30
+    while any(_alive(p) for p in helpers) and time.monotonic() < end:
+        time.sleep(0.2)
+    left = [p for p in helpers if _alive(p)]
+    for pid in left:
+        os.kill(pid, signal.SIGKILL)
+    assert not left, f"orphan processes {left}"
+    assert read_state(out) == "incomplete" and not (out / "video.mp4").exists()
