@@ -10,7 +10,8 @@ A run folder is in one of these states (docs/errors.md):
 
 A new run refuses a folder that already holds files unless ``--overwrite``, which
 clears it first, and only if it looks like a run folder (never a home directory).
-An interrupted run's partial video is renamed ``video.interrupted.mp4``, so no
+A run that did not complete has its partial video renamed ``video.<status>.mp4`` (an
+interrupted run's render workers are stopped and its video discarded), so no
 ``video.mp4`` ever holds part of a run.
 """
 
@@ -29,8 +30,8 @@ MARKER = "RUNNING"
 STATES = ("running", "complete", "interrupted", "diverged", "failed", "incomplete")
 # What a run writes; a folder holding anything else is not cleared by --overwrite.
 RUN_FILES = {
-    MARKER, "config.toml", "metrics.json", "trajectory.npz", "video.mp4", "video.interrupted.mp4", "plots", "model",
-    "MUJOCO_LOG.TXT",
+    MARKER, "config.toml", "metrics.json", "trajectory.npz", "video.mp4", "video.interrupted.mp4", "video.diverged.mp4",
+    "video.failed.mp4", "plots", "model", "MUJOCO_LOG.TXT",
 }
 
 
@@ -105,7 +106,7 @@ def read_state(out: Path) -> str:
 def finish(out: Path, status: str, reason: str | None = None) -> None:
     """Record the final ``status`` in metrics.json (creating it if the run stopped before writing it), drop the marker.
 
-    ``interrupted`` also renames a partial ``video.mp4`` to ``video.interrupted.mp4``.
+    Any status but ``complete`` renames a partial ``video.mp4`` to ``video.<status>.mp4``.
     """
     if status not in ("complete", "interrupted", "diverged", "failed"):
         raise ValueError(f"status: must be complete, interrupted, diverged or failed (got {status!r})")
@@ -114,7 +115,7 @@ def finish(out: Path, status: str, reason: str | None = None) -> None:
     if status != "complete":
         video = out / "video.mp4"
         if video.exists():
-            os.replace(video, out / "video.interrupted.mp4")
+            os.replace(video, out / f"video.{status}.mp4")
     path = out / "metrics.json"
     metrics: dict[str, Any] = {}
     if path.exists():
