@@ -159,6 +159,14 @@ class PlanTrackingController:
         }
         self.tools = ToolSequencer(context)
 
+    def planned(self, arm: str, state: MeasuredState) -> tuple[Array, Array]:
+        """(q, tool-centre pose) ``arm`` is asked to follow at this tick: the plan's sample.
+
+        The extension point for shifting the reference (``env.CorrectedController`` adds an
+        agent's bending-coordinate correction here).
+        """
+        return self.plan.q(arm)[state.plan_index], self.plan.tcp(arm)[state.plan_index]
+
     def command(self, state: MeasuredState) -> MotorCommands:
         i = state.plan_index
         # The gripper holds something fixed while its jaws are shut on the still-welded sample.
@@ -166,8 +174,9 @@ class PlanTrackingController:
         lengths, bending, common = {}, {}, {}
         for arm, controller in self._arms.items():
             m = state.arms[arm]
+            q_plan, tcp_plan = self.planned(arm, state)
             lengths[arm] = controller.update(
-                self.plan.q(arm)[i], self.plan.tcp(arm)[i], m.tcp_pos, m.tcp_mat, state.dt,
+                q_plan, tcp_plan, m.tcp_pos, m.tcp_mat, state.dt,
                 holding and arm == self.gripper_arm, m.cable_tension,
             )
             bending[arm] = controller.last_command

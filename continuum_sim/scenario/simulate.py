@@ -152,47 +152,74 @@ def prime(sim: Simulation) -> None:
     mujoco.mj_forward(sim.model, sim.data)
 
 
+class TickLoop:
+    """The tick loop one tick at a time: ``simulate`` runs it to the end, ``env`` one agent step at a time.
+
+    Construction primes the controller and calls every observer's ``start``; ``tick()`` runs one
+    control tick and returns the failure message of the observer that stopped it (or None);
+    ``close()`` calls every observer's ``close``.
+    """
+
+    def __init__(self, sim: Simulation, observers: Sequence[Observer] = ()) -> None:
+        self.sim = sim
+        self.observers = list(observers)
+        self.before_step = [o for o in self.observers if _overrides(o, "before_physics_step")]
+        self.after_step = [o for o in self.observers if _overrides(o, "after_physics_step")]
+        self.ticks = 0
+        self.physics_seconds = 0.0  # wall time inside mj_step
+        prime(sim)
+        for o in self.observers:
+            o.start(sim)
+
+    def tick(self) -> str | None:
+        sim, data = self.sim, self.sim.data
+        sim.tick = self.ticks
+        sim.plan_index = sim.plan_index_at(data.time)
+        sim.state = sim.measure(sim)
+        sim.commands = sim.controller.command(sim.state)
+        sim.actuate(sim, sim.commands)
+        for o in self.observers:
+            o.before_tick(sim)
+        start = time.perf_counter()
+        if self.before_step or self.after_step:
+            for _ in range(sim.control_every):
+                for o in self.before_step:
+                    o.before_physics_step(sim)
+                mujoco.mj_step(sim.model, data)
+                for o in self.after_step:
+                    o.after_physics_step(sim)
+        else:
+            mujoco.mj_step(sim.model, data, nstep=sim.control_every)
+        self.physics_seconds += time.perf_counter() - start
+        self.ticks += 1
+        for o in self.observers:
+            failure = o.after_tick(sim)
+            if failure is not None:
+                return failure
+        return None
+
+    def close(self) -> None:
+        for o in self.observers:
+            o.close(self.sim)
+
+
 def simulate(sim: Simulation, n_ticks: int, observers: Sequence[Observer] = ()) -> SimResult:
     """Prime the controller, then run ``n_ticks`` control ticks (see the module docstring)."""
-    model, data, nstep = sim.model, sim.data, sim.control_every
-    prime(sim)
-    before_step = [o for o in observers if _overrides(o, "before_physics_step")]
-    after_step = [o for o in observers if _overrides(o, "after_physics_step")]
+    loop: TickLoop | None = None
     failure: str | None = None
-    physics = 0.0
-    tick = 0
     try:
-        for o in observers:
-            o.start(sim)
-        for tick in range(n_ticks):
-            sim.tick = tick
-            sim.plan_index = sim.plan_index_at(data.time)
-            sim.state = sim.measure(sim)
-            sim.commands = sim.controller.command(sim.state)
-            sim.actuate(sim, sim.commands)
-            for o in observers:
-                o.before_tick(sim)
-            start = time.perf_counter()
-            if before_step or after_step:
-                for _ in range(nstep):
-                    for o in before_step:
-                        o.before_physics_step(sim)
-                    mujoco.mj_step(model, data)
-                    for o in after_step:
-                        o.after_physics_step(sim)
-            else:
-                mujoco.mj_step(model, data, nstep=nstep)
-            physics += time.perf_counter() - start
-            for o in observers:
-                failure = o.after_tick(sim)
-                if failure is not None:
-                    break
+        loop = TickLoop(sim, observers)
+        for _ in range(n_ticks):
+            failure = loop.tick()
             if failure is not None:
                 break
     finally:
-        for o in observers:
-            o.close(sim)
-    return SimResult(tick + 1 if n_ticks else 0, failure, physics)
+        if loop is not None:
+            loop.close()
+        else:
+            for o in observers:
+                o.close(sim)
+    return SimResult(loop.ticks if loop is not None else 0, failure, loop.physics_seconds if loop is not None else 0.0)
 
 
 # ------------------------------------------------------------------ built-in observers
