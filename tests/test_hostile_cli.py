@@ -205,6 +205,7 @@ CASES = [  # (id, argv with {file} placeholders, exit code, fragments of the one
      ["plan:", "samples", "cut_speed"]),
     ("plan-unknown-key", ["plan", "--no-plots", "--plan", "{unknown_key}", "--out", "{tmp}/p"], 2, ["model"]),
     ("workspace-samples", ["workspace", "--samples", "-1", "--out", "{tmp}/w"], 2, ["samples"]),
+    ("workspace-nan-in-file", ["workspace", "--config", "{nan_section}", "--out", "{tmp}/w"], 2, ["sections[0].length", "finite"]),
     ("workspace-voxel-nan", ["workspace", "--voxel", "nan", "--out", "{tmp}/w"], 2, ["--voxel", "finite"]),
     ("workspace-section-nan", ["workspace", "--section-y", "nan", "--out", "{tmp}/w"], 2, ["--section-y", "finite"]),
     ("workspace-section-inf", ["workspace", "--section-y", "-inf", "--out", "{tmp}/w"], 2, ["--section-y"]),

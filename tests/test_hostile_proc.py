@@ -218,3 +218,19 @@ def test_sigkill_of_a_video_run_leaves_no_render_workers(tmp_path):
         os.kill(pid, signal.SIGKILL)
     assert not left, f"orphan processes {left}"
     assert read_state(out) == "incomplete" and not (out / "video.mp4").exists()
+
+
+def test_full_disk_keeps_the_metrics(tmp_path):
+    """write_run writes the 3 kB metrics.json before the MB-sized trajectory: a full disk loses only the latter."""
+    import errno
+
+    from continuum_sim.scenario.runner import write_run
+
+    class FullDisk:
+        def save(self, path):
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    with pytest.raises(OSError, match="No space left"):
+        write_run(tmp_path, FullDisk(), {"sample_detached": True}, plan=None, config=None)
+    assert json.loads((tmp_path / "metrics.json").read_text()) == {"sample_detached": True}
+    assert not (tmp_path / "trajectory.npz").exists()
