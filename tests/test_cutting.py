@@ -14,8 +14,10 @@ feed and (π/4)·(K_r/K_t)·F_t against it.
 
 import math
 
+import mujoco  # noqa: E402
 import numpy as np
 import pytest
+from model_helpers import carry_with_mocap, compile_root, rigid_arm
 
 from continuum_sim import ArmGeometry
 from continuum_sim.configio import ConfigError
@@ -24,9 +26,6 @@ from continuum_sim.model.cutting import FoamOptions, foam_cutter, kerf_profile
 from continuum_sim.model.options import ModelOptions
 from continuum_sim.model.scene import SAMPLE_WELD, SceneOptions, build_scene
 from continuum_sim.model.tools import SpindleLoop, ToolOptions
-from model_helpers import carry_with_mocap, compile_root, rigid_arm
-
-import mujoco  # noqa: E402
 
 LAYOUT = TaskLayout()
 PLATE = LAYOUT.plate
@@ -139,6 +138,8 @@ def test_straight_cut_force_equals_the_analytic_value(scene):
     r = cutter.radius
     area = 2 * r * (rows[-1, 2] - PLATE.corner_y) + math.pi * r**2 / 2
     assert cutter.removed_volume == pytest.approx(area * PLATE.thickness, rel=0.05)
+    # and the work the force model did is u times that volume
+    assert float(np.sum(rows[:, 9]) * model.opt.timestep) == pytest.approx(cutter.u * cutter.removed_volume, rel=0.08)
 
 
 def test_force_rises_with_feed_and_depth_and_falls_with_spindle_speed(scene):
@@ -146,10 +147,10 @@ def test_force_rises_with_feed_and_depth_and_falls_with_spindle_speed(scene):
         part, _, _ = run_straight(scene, **kw)
         return float(np.hypot(part[:, 3], part[:, 4]).mean()), float(part[:, 5].mean())
 
-    base, base_torque = mean_force(feed=0.01)
-    faster, _ = mean_force(feed=0.02)
-    shallow, _ = mean_force(feed=0.01, depth=0.005)
-    slow_spindle, slow_torque = mean_force(feed=0.01, spindle=500.0)
+    base, base_torque = mean_force(feed=0.02)
+    faster, _ = mean_force(feed=0.04)
+    shallow, _ = mean_force(feed=0.02, depth=0.005)
+    slow_spindle, slow_torque = mean_force(feed=0.02, spindle=500.0)
     assert faster == pytest.approx(2 * base, rel=0.1)
     assert shallow == pytest.approx(0.5 * base, rel=0.15)
     assert slow_spindle == pytest.approx(2 * base, rel=0.1) and slow_torque == pytest.approx(2 * base_torque, rel=0.1)
@@ -198,17 +199,24 @@ def test_spindle_off_cuts_nothing():
     assert rows[-1, 7] == 0.0 and cutter.grid.material.all()
 
 
-def test_detachment_only_when_the_material_no_longer_connects():
+@pytest.fixture(scope="module")
+def two_part_cut():
+    """The L cut at 40 mm/s, stopped 3 mm before the plate's side edge, then finished."""
     model, data, cutter = make()
     points = cut_path()
     cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
     feed = 0.04
     # Stop 3 mm before the cutter's edge reaches the plate's side edge: a 3 mm bridge holds.
     stop = cum[3] - (points[3, 0] - (PLATE.corner_x - cutter.radius - 0.003))
-    rows = drive(model, data, cutter, points, feed, stop=stop, settle=0.3)
-    assert not cutter.detached and data.eq_active[model.equality(SAMPLE_WELD).id] == 1
-    assert cutter.check_connectivity() is False
+    drive(model, data, cutter, points, feed, stop=stop, settle=0.3)
+    partial = (cutter.detached, int(data.eq_active[model.equality(SAMPLE_WELD).id]), cutter.check_connectivity())
     rows = drive(model, data, cutter, points, feed, start_delay=0.0, start=stop, settle=0.2)  # finish the cut
+    return model, data, cutter, points, feed, partial, rows
+
+
+def test_detachment_only_when_the_material_no_longer_connects(two_part_cut):
+    model, data, cutter, points, feed, partial, rows = two_part_cut
+    assert partial == (False, 1, False)  # the 3 mm bridge held the sample
     assert cutter.detached and data.eq_active[model.equality(SAMPLE_WELD).id] == 0
     # Independent check: the cut separates once the cutter's edge passes the side edge x1
     # (voxel centres within R are removed; one voxel of rounding, one check period of delay).
@@ -220,22 +228,19 @@ def test_detachment_only_when_the_material_no_longer_connects():
     assert cutter.freed_volume == pytest.approx(sample, rel=0.06)
 
 
-@pytest.mark.parametrize("jitter", [None, (0.0003, 8.0)])
-def test_cutting_energy_equals_u_times_the_volume_removed(scene, jitter):
-    """∫P dt (the force model) against u × the voxels removed (geometry), also when the
-    cutter jitters back and forth by ±0.3 mm along its path (no chip where it was before)."""
+def test_cutting_energy_equals_u_times_the_volume_removed(scene):
+    """∫P dt (the force model) against u × the voxels removed (geometry), with the cutter
+    jittering back and forth by ±0.3 mm along its path (no chip where it was before)."""
     model, data, cutter = scene
     mujoco.mj_resetData(model, data)
     cutter.reset()
-    rows = drive(model, data, cutter, straight(0.02), feed=0.01, jitter=jitter)
+    rows = drive(model, data, cutter, straight(0.02), feed=0.01, jitter=(0.0003, 8.0))
     energy = float(np.sum(rows[:, 9]) * model.opt.timestep)
     assert energy == pytest.approx(cutter.u * cutter.removed_volume, rel=0.08)
 
 
-def test_kerf_measured_from_the_cut():
-    model, data, cutter = make()
-    points = cut_path()
-    drive(model, data, cutter, points, feed=0.04)
+def test_kerf_measured_from_the_cut(two_part_cut):
+    _, _, cutter, points, *_ = two_part_cut
     g = cutter.grid
     stations, centres, widths = kerf_profile(g.cut_map() > 0.5, g.lo, g.h, points[1:4, :2], 0.002, 0.012)
     inside = ~np.isnan(widths)
@@ -244,6 +249,7 @@ def test_kerf_measured_from_the_cut():
     tcp_err = np.linalg.norm(centres[inside] - stations[inside], axis=1)
     assert np.median(tcp_err) < 0.6e-3
     assert np.median(widths[inside]) == pytest.approx(PLATE.kerf_width, abs=1.1e-3)
+    assert cutter.n_cells > 0 and cutter.cells_remaining == 0  # the kerf's core is cut through
 
 
 def test_foam_options_validate():
