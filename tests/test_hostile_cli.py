@@ -432,3 +432,18 @@ def test_ray_address_probe_is_bounded(address, fragment):
     with pytest.raises(ConfigError, match=fragment):
         probe_address(address, timeout=2.0)
     assert time.monotonic() - start < 10.0
+
+
+def test_steps_per_run_limit_names_the_timestep():
+    import dataclasses
+
+    from continuum_sim.configio import ConfigError
+    from continuum_sim.limits import MAX_SIM_STEPS, check_run_length, check_scenario
+    from continuum_sim.scenario.config import ScenarioConfig
+
+    config = ScenarioConfig()
+    check_scenario(config)
+    check_run_length(config, 51.3)  # the default task: ~13,000 steps
+    slow = dataclasses.replace(config, model=dataclasses.replace(config.model, timestep=1e-6))
+    with pytest.raises(ConfigError, match=r"model\.timestep.*MuJoCo steps"):
+        check_run_length(slow, 1.01 * MAX_SIM_STEPS * 1e-6)
