@@ -4,7 +4,7 @@ The motor loops themselves are the model's tendon position actuators (one per ca
 tension-only). This module chooses their set-points:
 
 * ``open`` (the paper's method): cable lengths of the planned PCC shape, shortened by a
-  pre-tension offset ``pretension / kp`` so no cable goes slack;
+  pre-tension offset ``pretension / k`` (each cable's own stiffness) so no cable goes slack;
 * ``closed`` (ours): the same, but the commanded shape is the planned one plus a
   correction that integrates the measured tool-pose error through the PCC Jacobian
   (damped least squares in bending coordinates), the improvement the paper suggests.
@@ -42,9 +42,14 @@ class ControlConfig:
     # (``continuum_sim.controllers.Controller`` protocol; checked when the run starts).
     controller: str = ""
     rate_hz: float = 125.0  # control (set-point) update rate (rounded to whole steps); the motor loops run every step
-    pretension: float = 10.0  # N, tension every cable keeps at the planned shape
-    outer_gain: float = 4.0  # 1/s, integral gain of the task-space correction
-    outer_proportional: float = 2.0  # proportional share of the pose error added to the command
+    # N, tension every cable keeps at the planned shape. 30 N (15 % of the 200 N motor rating):
+    # with the strain-limited leaves a bend needs ~100 N on its inner cables, whose stretch
+    # unloads the outer ones; at 10 N a quarter of the task's records had a slack cable.
+    pretension: float = 30.0
+    outer_gain: float = 8.0  # 1/s, integral gain of the task-space correction
+    # Proportional share of the pose error added to the command. It feeds the pose measured
+    # every tick straight back: at 2 it rang the ~20-25 Hz cable-arm mode (docs/plant.md).
+    outer_proportional: float = 0.5
     orientation_weight: float = 0.1  # m/rad: how much 1 rad of tool tilt counts against 1 m
     damping: float = 1e-4  # damped-least-squares regulariser (m²)
     max_correction_deg: float = 15.0  # bound on the correction per section (bending angle)
@@ -120,7 +125,7 @@ class ArmController:
         config: ControlConfig,
         base: Array,
         tool_length: float,
-        cable_kp: float,
+        cable_kp: float | Array,
         roll_free: bool = False,
     ) -> None:
         self.geometry = geometry
@@ -129,15 +134,19 @@ class ArmController:
         self.base = np.asarray(base, dtype=float)
         self._base_rot_rows = self.base[:3, :3].T.tolist()  # rows of Rᵀ: world -> arm base frame
         self.tool_length = float(tool_length)
-        self.offset = config.pretension / cable_kp
+        # Per-cable stiffness (N/m): the elastic cables' EA/L (motors.cable_stiffness), or the
+        # lumped servo's gain; the pre-tension offset of each cable is its own T/k.
+        stiffness = np.broadcast_to(np.asarray(cable_kp, dtype=float), (3 * geometry.n_sections,)).copy()
+        self.offset = config.pretension / stiffness
         self.correction = np.zeros(2 * geometry.n_sections)
         self.proportional = np.zeros(2 * geometry.n_sections)
         self._max_bend = np.broadcast_to(geometry.max_bend, (geometry.n_sections,)).astype(float).tolist()
         self.max_correction = np.radians(config.max_correction_deg)
         self._pose = kin.ArmKernel(geometry, self.tool_length)
         self._cables = kin.CableKernel(geometry)
-        self.cable_kp = float(cable_kp)
         self._cable_section = kin.cable_sections(geometry)
+        # A section's common mode moves its three cables together: tension per metre of it.
+        self.cable_kp = stiffness.reshape(geometry.n_sections, 3).mean(axis=1)
         self.extra = np.zeros(geometry.n_sections)  # common-mode shortening per section (m), tension keeping
         self._regulariser = config.damping * np.eye(5 if roll_free else 6)
         self._holding = False

@@ -125,6 +125,21 @@ class ToolSequencer:
         return self.gripper_cable, tools.spindle_speed if self.plan.spindle_on[i] else 0.0
 
 
+def plan_at(plan: TaskPlan, arm: str, t: float) -> tuple[Array, Array]:
+    """(q, tcp) of ``arm``'s plan at time ``t``, linearly interpolated between samples.
+
+    The plan is sampled at 100 Hz and the control tick runs at 125 Hz: taking the nearest
+    sample repeated every fifth one, which modulated the set-point rate at the 25 Hz beat
+    and rang the cables (docs/plant.md, "Tension chatter").
+    """
+    times = plan.t
+    x = min(max((t - float(times[0])) / float(times[1] - times[0]), 0.0), len(times) - 1.0)
+    i0 = min(int(x), len(times) - 2)
+    f = x - i0
+    q, tcp = plan.q(arm), plan.tcp(arm)
+    return (1.0 - f) * q[i0] + f * q[i0 + 1], (1.0 - f) * tcp[i0] + f * tcp[i0 + 1]
+
+
 class PlanTrackingController:
     """The built-in controllers: each arm follows the plan through ``control.ArmController``.
 
@@ -140,6 +155,7 @@ class PlanTrackingController:
 
     def reset(self, context: ControlContext) -> None:
         from .control import ArmController
+        from .model.motors import cable_stiffness
 
         cfg = context.config
         control = cfg.control if self.mode is None else dataclasses.replace(cfg.control, mode=self.mode)
@@ -152,7 +168,7 @@ class PlanTrackingController:
                 control,
                 context.layout.mount(arm).base_transform(),
                 cfg.arm.tools.length(context.layout.tool_of(arm)),
-                cfg.model.cable_kp,
+                cable_stiffness(cfg.arm, cfg.model),  # per cable: EA/L (elastic) or the lumped gain
                 roll_free=arm == self.grinder_arm,  # the cutter is axisymmetric (planned in 'axis' mode too)
             )
             for arm in context.arms
@@ -160,12 +176,12 @@ class PlanTrackingController:
         self.tools = ToolSequencer(context)
 
     def planned(self, arm: str, state: MeasuredState) -> tuple[Array, Array]:
-        """(q, tool-centre pose) ``arm`` is asked to follow at this tick: the plan's sample.
+        """(q, tool-centre pose) ``arm`` is asked to follow at this tick: the plan at the tick's time.
 
         The extension point for shifting the reference (``env.CorrectedController`` adds an
         agent's bending-coordinate correction here).
         """
-        return self.plan.q(arm)[state.plan_index], self.plan.tcp(arm)[state.plan_index]
+        return plan_at(self.plan, arm, state.time)  # interpolated at the tick's time (see plan_at)
 
     def command(self, state: MeasuredState) -> MotorCommands:
         i = state.plan_index

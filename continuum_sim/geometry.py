@@ -196,13 +196,13 @@ class ToolGeometry:
 
 def _default_sections() -> tuple[SectionGeometry, ...]:
     # Base -> tip; the paper numbers sections from the tip (its Section 3 is our index 0).
-    # leaf_radius 0: leaves bent about the joint (the stiffness every run has used so far).
-    # The strain-limited placement (docs/model.md: 2.9/2.3/1.8 mm, x3.3-3.7 stiffer) is
-    # ``model.stiffness.strain_limited_geometry`` until the closed loop holds on the stiffer plant.
+    # Leaves at the strain-limited radius (docs/model.md: 2.9/2.3/1.8 mm, x3.3-3.7 stiffer
+    # than leaves bent about the joint, ``model.stiffness.strain_limited_geometry``); the
+    # closed loop holds on this plant with the elastic cables (docs/plant.md).
     return (
-        SectionGeometry(0.210, 0.046, 0.006, 0.001, cable_angles_deg=(0.0, 120.0, 240.0)),
-        SectionGeometry(0.180, 0.043, 0.005, 0.001, cable_angles_deg=(40.0, 160.0, 280.0)),
-        SectionGeometry(0.150, 0.040, 0.004, 0.001, cable_angles_deg=(80.0, 200.0, 320.0)),
+        SectionGeometry(0.210, 0.046, 0.006, 0.001, cable_angles_deg=(0.0, 120.0, 240.0), leaf_radius=0.0029),
+        SectionGeometry(0.180, 0.043, 0.005, 0.001, cable_angles_deg=(40.0, 160.0, 280.0), leaf_radius=0.0023),
+        SectionGeometry(0.150, 0.040, 0.004, 0.001, cable_angles_deg=(80.0, 200.0, 320.0), leaf_radius=0.0018),
     )
 
 

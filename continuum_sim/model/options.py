@@ -32,11 +32,11 @@ class ModelOptions:
     # length: lead + in-arm path), pulled by a motor whose position (a PI encoder loop
     # with speed and force limits, continuum_sim.model.motors) is the actuator's control;
     # "lumped": the legacy single P-only servo of gain cable_kp standing for motor and cable.
-    cable_model: Literal["elastic", "lumped"] = "lumped"  # elastic becomes the default once the runner drives the motors
+    cable_model: Literal["elastic", "lumped"] = "elastic"
     rope_diameter: float = 1.0e-3  # m, nominal diameter of the steel wire rope (*assumed*, docs/plant.md)
     rope_modulus: float = 73.2e9  # Pa, effective modulus on the nominal area π d²/4: 7x7 302/304 stainless (Loos G factor)
     cable_lead_length: float = 0.25  # m, rope from the spool through the pack's guides to the arm's base plate (*assumed*)
-    cable_max_force: float = 150.0  # N, motor force rating at the cable = stall torque / spool radius (Fmax)
+    cable_max_force: float = 200.0  # N, motor force rating at the cable = stall torque / spool radius (2 N·m at 10 mm)
     motor_max_speed: float = 0.06  # m/s, motor no-load speed at the cable = spool speed × spool radius
     motor_kp: float = 40.0  # 1/s, encoder position loop: proportional gain (velocity command per metre of error)
     motor_ki: float = 400.0  # 1/s², encoder position loop: integral gain (removes the load droop)

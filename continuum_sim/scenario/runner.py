@@ -26,6 +26,7 @@ from ..limits import check_run_length, check_scenario
 from ..controllers import ControlContext, Controller, controller_spec, load_controller
 from ..model.handles import SceneHandles
 from ..model.options import model_geometry
+from ..model.motors import MotorDrive
 from ..model.state import set_arm_configuration
 from ..toolpath import TaskPlan, plan_task
 from . import metrics as met
@@ -136,6 +137,8 @@ def make_simulation(config: ScenarioConfig, plan: TaskPlan, model: mujoco.MjMode
     context = ControlContext(plan, geometry, config.layout, config, handles.arms, dict(handles.tool_arm),
                              control_every * model.opt.timestep)
     sim = Simulation(model, data, handles, plan, controller, context, control_every)
+    # The motors between commands and cables (docs/plant.md): PI encoder loops, speed and force limits.
+    sim.actuate = MotorDrive(model, handles, geometry, config.model, config.scene.tools)
     if config.simulation.tcp_noise_m > 0.0:
         sim.measure = NoisyMeasurement(config.simulation.tcp_noise_m, config.simulation.seed)
     return sim
