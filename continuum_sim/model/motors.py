@@ -196,7 +196,7 @@ class MotorBank:
         data.ctrl[self.actuators] = x_mean
 
 
-def arm_motor_bank(model, actuators: Array, tendons: Array, geometry: ArmGeometry, options: ModelOptions) -> MotorBank:
+def arm_motor_bank(model, actuators: Array, tendons: Array, options: ModelOptions) -> MotorBank:
     """The motors of one arm's cables, as configured (elastic or lumped)."""
     n = len(actuators)
     if options.cable_model == "lumped":
@@ -216,8 +216,11 @@ class MotorDrive:
     """
 
     def __init__(self, model, handles, geometry: ArmGeometry, options: ModelOptions, tools) -> None:
+        for arm in handles.arms:
+            if len(handles.cable_actuators[arm]) != 3 * geometry.n_sections:
+                raise ValueError(f"{arm}: {len(handles.cable_actuators[arm])} cable actuators for {geometry.n_sections} sections")
         self.banks = {
-            arm: arm_motor_bank(model, handles.cable_actuators[arm], handles.cable_tendons[arm], geometry, options)
+            arm: arm_motor_bank(model, handles.cable_actuators[arm], handles.cable_tendons[arm], options)
             for arm in handles.arms
         }
         grip = int(handles.gripper_actuator)
