@@ -11,9 +11,11 @@ time (``time.process_time``), single process:
   tension from the statics (spring torque at the last joint over MuJoCo's moment arm)
   against e^(−μθ);
 * ``hysteresis``: the same section under a staircase of motor tension up and down
-  (each level held to rest), bend vs tension for μ = 0 and the default μ.
+  (each level held to rest), bend vs tension for μ = 0 and the default μ;
+* ``scenario``: the whole default task with μ = 0 and the default μ: CPU time (closed loop,
+  repeated, interleaved) and the task metrics, closed and open loop (~1–2 min CPU).
 
-    python benchmarks/friction.py [--steps 500] [--repeats 3] [--plot docs/friction_hysteresis.png]
+    python benchmarks/friction.py [--skip step compile capstan hysteresis scenario] [--plot docs/friction_hysteresis.png]
 """
 
 from __future__ import annotations
@@ -29,13 +31,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-import numpy as np
-
-from continuum_sim.glbackend import choose_gl_backend
-
-choose_gl_backend()
-
 import mujoco
+import numpy as np
 
 from continuum_sim import cable_lengths
 from continuum_sim.geometry import ArmGeometry
@@ -272,6 +269,36 @@ def plot(loops: dict, path: Path) -> None:
     atomic_write_figure(fig, path)
 
 
+def scenario_runs(repeats: int) -> list[dict]:
+    """The whole default task, μ = 0 vs the default μ, closed (``repeats`` times, interleaved) and open loop."""
+    from continuum_sim.scenario.config import merged
+    from continuum_sim.scenario.runner import run_scenario
+
+    rows = []
+    plan = [("closed", mu) for _ in range(repeats) for mu in (0.0, fr.DEFAULT_MU)] + [("open", 0.0), ("open", fr.DEFAULT_MU)]
+    fr.kernels()["friction_forces"]  # noqa: B018 - compile/load before timing
+    for mode, mu in plan:
+        config = merged(ScenarioConfig.default(), {"model": {"cable_friction": {"mu": mu}}, "control": {"mode": mode}})
+        t0 = time.process_time()
+        m = run_scenario(config, None)
+        cpu = time.process_time() - t0
+        rows.append(
+            {
+                "mode": mode,
+                "mu": mu,
+                "cpu_s": round(cpu, 2),
+                "cutting_error_mm": {k: round(v, 3) for k, v in m["cutting_tip_error_mm"].items()},
+                "cut_path_deviation_mean_mm": round(m["cut_path_deviation_mm"]["mean"], 3),
+                "tip_error_all_mean_mm": {arm: round(e["all"]["mean"], 3) for arm, e in m["tip_error_mm"].items()},
+                "sample_detached": m["sample_detached"],
+                "sample_held_at_end": m["sample_held_at_end"],
+                "anchor_ratio_min_max": [round(m["cable_friction"][k], 3) for k in ("anchor_ratio_min", "anchor_ratio_max")],
+                "tension_change_mean_abs_percent": round(m["cable_friction"]["tension_change_mean_abs_percent"], 2),
+            }
+        )
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=500)
@@ -279,7 +306,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--levels", type=int, default=8)
     parser.add_argument("--hold", type=int, default=2000, help="most steps a tension level is held to rest (4 ms each)")
     parser.add_argument("--plot", type=Path, default=None)
-    parser.add_argument("--skip", nargs="*", default=[], choices=["step", "compile", "capstan", "hysteresis"])
+    parser.add_argument("--skip", nargs="*", default=[], choices=["step", "compile", "capstan", "hysteresis", "scenario"])
+    parser.add_argument("--scenario-repeats", type=int, default=2, help="closed-loop whole-task runs per μ (CPU time)")
     args = parser.parse_args(argv)
     out: dict = {"default_mu": fr.DEFAULT_MU, "presliding_m": fr.DEFAULT_PRESLIDING, "load_average": os.getloadavg()}
     if "compile" not in args.skip:
@@ -295,6 +323,8 @@ def main(argv: list[str] | None = None) -> int:
         }
         if args.plot is not None:
             plot(loops, args.plot)
+    if "scenario" not in args.skip:
+        out["scenario"] = scenario_runs(args.scenario_repeats)
     print(json.dumps(out, indent=2))
     return 0
 

@@ -282,3 +282,26 @@ def test_zero_friction_is_bit_identical_and_the_guard_spares_other_models() -> N
     assert (
         mujoco.get_mjcb_passive() is None
     )  # no registration left: the global callback is handed back
+
+
+# ------------------------------------------------------------------------ in a run
+def test_scenario_records_the_friction_loss_per_cable(tmp_path) -> None:
+    """The default run installs friction, records anchor/motor ratios, reports them, cleans up."""
+    from continuum_sim.scenario.config import ScenarioConfig
+    from continuum_sim.scenario.runner import run_scenario
+    from continuum_sim.scenario.trajectory import Trajectory
+
+    config = ScenarioConfig.default()
+    assert config.model.cable_friction.mu == fr.DEFAULT_MU
+    metrics = run_scenario(config, tmp_path, stages=("initial", "clamping"))
+    assert mujoco.get_mjcb_passive() is None  # removed when the run closed
+    trajectory = Trajectory.load(tmp_path / "trajectory.npz")
+    ratio = trajectory.arms["right"].cable_anchor_ratio  # the gripper arm moves in these stages
+    assert ratio.shape == trajectory.arms["right"].cable_tension.shape
+    assert ratio.min() < 0.97 and ratio.max() > 1.03  # reeled-in cables lose tension, paid-out ones gain
+    assert np.all(ratio > np.exp(-config.model.cable_friction.mu * np.pi))  # no cable wraps more than 180°
+    friction = metrics["cable_friction"]
+    assert friction["mu"] == fr.DEFAULT_MU
+    all_ratios = np.concatenate([a.cable_anchor_ratio for a in trajectory.arms.values()], axis=1)
+    assert friction["anchor_ratio_min"] == pytest.approx(all_ratios.min())
+    assert len(friction["anchor_ratio_mean"]["right"]) == ratio.shape[1]

@@ -48,12 +48,14 @@ from ..configio import require_range
 # at μ ≈ 0.05–0.25 in engineering friction tables; 0.15 is the middle of the 0.1–0.2 range
 # the issue names for steel rope in polymer or PTFE-lined holes. Not measured on the robot.
 DEFAULT_MU = 0.15
-# Stick band: 0.05 mm of sliding builds friction from zero to full after a reversal. A
-# steel rope's own stretch over one 15–21 mm piece at a ~1 N friction step is ~1 µm, so
-# the real stick is stiffer; 0.05 mm keeps the explicit friction force stable at the 4 ms
-# scenario step (friction stiffness μβT/δ ≈ 10⁴ N/m per hole, well below the 3·10⁴ N/m
-# motor loop) while being < 0.3 % of a section's 24 mm cable stroke.
-DEFAULT_PRESLIDING = 5.0e-5
+# Stick band: 0.2 mm of sliding builds friction from zero to full after a reversal. A
+# numerical regularisation of ideal stick (a steel rope's own stretch over one 15–21 mm
+# piece at a ~1 N friction step is ~1 µm). Chosen on the default task (docs/friction.md):
+# the presliding stiffness μβT/δ enters the explicit passive force and slows MuJoCo's
+# constraint solver (mean iterations per step 1.52 frictionless, 3.26 at 0.05 mm, 1.97 at
+# 0.2 mm, 1.79 at 1 mm) while the capstan and the hysteresis do not change (capstan error
+# < 0.1 % at 0.05 and 0.2 mm); 0.2 mm is < 1 % of a section's 24 mm cable stroke.
+DEFAULT_PRESLIDING = 2.0e-4
 
 CABLE_TENDON_PATTERN = r"(^|/)cable_\d+_\d+$"
 
@@ -63,9 +65,7 @@ class CableFrictionConfig:
     """Friction of the cables in the disk holes (μ = 0: frictionless, nothing installed)."""
 
     mu: float = DEFAULT_MU  # Coulomb coefficient, steel rope in printed-polymer holes (*assumed*)
-    presliding: float = (
-        DEFAULT_PRESLIDING  # m, Dahl stick band (numerical regularisation of stick)
-    )
+    presliding: float = DEFAULT_PRESLIDING  # m, Dahl stick band (numerical regularisation of stick)
     base_hole: bool = True  # friction also where the cable enters the base plate (arriving along the base z)
 
     def __post_init__(self) -> None:
@@ -291,15 +291,14 @@ _KERNELS: dict[str, Any] = {}
 
 
 def kernels() -> dict[str, Any]:
-    """The numba-compiled kernels (compiled, or loaded from numba's cache, on first use)."""
+    """The numba-compiled kernels (compiled, or loaded from numba's cache, on first use).
+
+    Lazy: ``ModelOptions`` imports this module for its config, and importing numba (let
+    alone compiling) should cost nothing to runs without friction. The helpers are
+    rebound to their jitted versions so the kernels call them in nopython mode.
+    """
     if not _KERNELS:
-        global \
-            _axis_angle, \
-            _quat_mat, \
-            _matmul3, \
-            _segment_rotations, \
-            _cable_pieces, \
-            _friction_forces
+        global _axis_angle, _quat_mat, _matmul3, _segment_rotations, _cable_pieces, _friction_forces
         _axis_angle = _jit(_axis_angle)
         _quat_mat = _jit(_quat_mat)
         _matmul3 = _jit(_matmul3)
@@ -389,7 +388,11 @@ def cable_routing(model, tendon_ids: np.ndarray | None = None) -> CableRouting:
             "dofadr",
         )
     }
-    piece_seg, piece_parent, piece_child, start, end = [], [], [], [], []
+    piece_seg: list[int] = []
+    piece_parent: list[np.ndarray] = []
+    piece_child: list[np.ndarray] = []
+    start: list[int] = []
+    end: list[int] = []
     for t in tendon_ids:
         name = model.tendon(int(t)).name
         adr, num = int(model.tendon_adr[t]), int(model.tendon_num[t])
@@ -547,7 +550,7 @@ class CableFriction:
         self.wrap = np.zeros(n_pieces)  # β of the hole before each piece (rad)
         self.tension = np.zeros(n_cables)
         self.active = config.mu > 0.0
-        self._fn = kernels()["friction_forces"] if self.active else None
+        self._fn: Any = kernels()["friction_forces"] if self.active else None
         # Tension sources MuJoCo puts along each tendon: its actuators and its own spring/damper.
         trn_tendon = int(mujoco.mjtTrn.mjTRN_TENDON)
         act_ids, act_owner = [], []

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 from ..configio import ConfigError, require_int, require_positive, require_range
 from ..geometry import ArmGeometry
+from .friction import CableFrictionConfig
 
 
 @dataclass(frozen=True)
@@ -50,6 +51,9 @@ class ModelOptions:
     jacobian: Literal["auto", "dense", "sparse"] = "auto"  # MuJoCo's constraint Jacobian storage
     impratio: float = 100.0  # friction-to-normal impedance ratio (elliptic cones): high = little frictional creep
     tendons: bool = True  # False: joints only (for benchmarks and pure-beam tests)
+    # Friction of the cables in the disk holes: capstan loss with stick/slip (model/friction.py,
+    # docs/friction.md); mu = 0 installs nothing.
+    cable_friction: CableFrictionConfig = field(default_factory=CableFrictionConfig)
 
     def __post_init__(self) -> None:
         if self.joint not in ("ball", "hinge_pair", "hinge_triple"):

@@ -120,6 +120,9 @@ def compute_metrics(trajectory: Trajectory, plan: TaskPlan, config: ScenarioConf
     out["arms_touched"] = bool(forces[:, CONTACT_KINDS.index("arm_arm")].max() > 0.0)
     tension = np.concatenate([a.cable_tension for a in tr.arms.values()], axis=1)
     out["max_cable_tension_n"] = float(tension.max())
+    from .cable_friction import friction_metrics
+
+    out["cable_friction"] = friction_metrics(tr, config)
     out["min_cable_tension_n"] = float(tension.min())
     if tr.cutting:
         from ..model.cutting import CuttingRecord, cutting_metrics

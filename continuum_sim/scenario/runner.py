@@ -31,6 +31,7 @@ from ..model.state import set_arm_configuration
 from ..toolpath import TaskPlan, plan_task
 from . import metrics as met
 from .config import ScenarioConfig
+from .cable_friction import CableFrictionObserver
 from .simulate import (
     CutterObserver, HealthCheck, NoisyMeasurement, Observer, ProgressObserver, Recorder, Simulation, VideoObserver, simulate,
 )
@@ -72,7 +73,8 @@ def run_scenario(
     every = round(1.0 / (config.simulation.record_hz * sim.control_period))
     cutter = CutterObserver(sim, every)
     recorder = Recorder(every, cutter)
-    hooks: list[Observer] = [cutter, recorder, *observers, HealthCheck()]
+    friction = CableFrictionObserver(config.model.cable_friction, recorder.every)  # acts inside mj_step
+    hooks: list[Observer] = [cutter, recorder, friction, *observers, HealthCheck()]
     if video and out is not None:
         hooks.append(VideoObserver(sim, out / "video.mp4", config.simulation))
     if progress:
@@ -82,7 +84,7 @@ def run_scenario(
     clock.lap("control_records_video")
     clock.laps["physics_mj_step"] = result.physics_seconds  # inside mj_step: what the run costs if all else were free
     clock.laps["control_records_video"] -= result.physics_seconds
-    series = recorder.arrays()
+    series = recorder.arrays() | friction.arrays()
     trajectory = make_trajectory(series, sim.handles, plan, cutter, stages_run, result.failure, clock)
     metrics = met.compute_metrics(trajectory, plan, config)
     if out is not None:

@@ -34,6 +34,7 @@ class ArmTrajectory:
     tcp_mat: Array  # (N, 3, 3) simulated tool frame
     cable_length: Array  # (N, C) cable path lengths (m)
     cable_tension: Array  # (N, C) cable tensions (N, ≥ 0)
+    cable_anchor_ratio: Array  # (N, C) anchor / motor tension (capstan loss in the holes; 1 = none)
     cable_common_mode: Array  # (N, sections) tension keeping's common-mode shortening (m; NaN if none)
     disk_pos: Array  # (N, disks, 3) disk centres
 
@@ -112,7 +113,7 @@ class Trajectory:
             data = {key: npz[key] for key in npz.files}
         meta = json.loads(str(data.pop("meta")))
         arms = {
-            arm: ArmTrajectory(**{f.name: data[f"{arm}_{f.name}"] for f in fields(ArmTrajectory)})
+            arm: ArmTrajectory(**{f.name: _arm_series(data, arm, f.name) for f in fields(ArmTrajectory)})
             for arm in meta["arms"]
         }
         removal = np.array([np.nan if x is None else x for x in meta["cell_removal_times_s"]], dtype=float)
@@ -136,3 +137,11 @@ def _cutting_arrays(data: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     from ..model.cutting import CUTTING_ARRAYS
 
     return {key: data[key] for key in CUTTING_ARRAYS if key in data}
+
+
+def _arm_series(data: dict[str, np.ndarray], arm: str, name: str) -> np.ndarray:
+    """One saved per-arm series; runs saved before cable friction existed had no loss (ratio 1)."""
+    key = f"{arm}_{name}"
+    if key not in data and name == "cable_anchor_ratio":
+        return np.ones_like(data[f"{arm}_cable_tension"])
+    return data[key]
