@@ -181,7 +181,7 @@ class FoamCutter:
         in_sample = (gx >= lo[0]) & (gx <= hi[0]) & (gy >= lo[1]) & (gy <= hi[1])
         near = (gx - grasp_point[0]) ** 2 + (gy - grasp_point[1]) ** 2 <= foam.grip_radius**2
         self._held_columns = in_sample & near if (in_sample & near).any() else in_sample
-        band = np.zeros(grid.shape[:2], dtype=bool)
+        band = np.zeros(grid.shape[:2], dtype=bool)  # type: ignore[assignment]
         if kerf is not None:
             # The kerf's core: the middle half of its width, so a cut up to a quarter kerf width
             # off the plan still clears every "cell".
@@ -312,20 +312,21 @@ class FoamCutter:
                 # the velocity: F = −D·v with D = [[a, −b], [b, a]] (a: against the feed, b: across).
                 a = (k_r * i_cc - sgn * k_t * i_cs) / abs(omega)
                 bb = (k_r * i_cs + sgn * k_t * i_cc) / abs(omega)
-                # D is a stiff damper on a light tool (D·dt/m ≈ 1 at twice the default foam
-                # density): applied explicitly it diverges. Backward Euler instead: the velocity
-                # at the end of the step, v' = (I + dt·L·D)⁻¹·(v + dt·a_other), with L the
-                # cutter point's inverse inertia (J M⁻¹ Jᵀ) and a_other the acceleration of
-                # everything else (last step's, less this force's share): exact when steady.
-                vx_e, vy_e = self._implicit_velocity(vx, vy, a, bb, dt, cx, cy)
-                fx, fy = -(a * vx_e - bb * vy_e), -(bb * vx_e + a * vy_e)
-                feed = vx_e * ex + vy_e * ey  # advance along the feed direction this step
-                c = max(feed, 0.0) / abs(omega)  # feed per radian: v_f/ω = c/(2π)
+                # The force is −s·g with s the feed speed along e_f and g = a·e_f + b·e_n: a stiff
+                # damper on a light tool (a·dt/m ≈ 1 at twice the default foam density); applied
+                # explicitly it diverges. Backward Euler on s instead: s' = e_f·w / (1 + dt·e_f·L·g),
+                # w = v + dt·a_other, with L the cutter point's inverse inertia (J M⁻¹ Jᵀ) and
+                # a_other the acceleration of everything else (last step's, less this force's
+                # share): exact when steady. The foam only resists: s' ≥ 0.
+                feed = self._implicit_feed(vx, vy, ex, ey, a, bb, dt, cx, cy)
+                fx = -feed * (a * ex - bb * ey)
+                fy = -feed * (a * ey + bb * ex)
+                c = feed / abs(omega)  # feed per radian: v_f/ω = c/(2π)
                 area = r * float(depth @ self._i_c)
                 torque = c * k_t * area  # = u·v_f·A/ω
                 state = CutState(
                     force=np.array([fx, fy, 0.0]), feed_force=-(fx * ex + fy * ey), normal_force=-fx * ey + fy * ex,
-                    torque=torque, mrr=max(feed, 0.0) * area, power=torque * abs(omega), depth=float(depth.mean()),
+                    torque=torque, mrr=feed * area, power=torque * abs(omega), depth=float(depth.mean()),
                     chip=2 * math.pi * c, feed_speed=speed, cutting=area > 0.0,
                 )
             if n_inside and cutting:
@@ -362,8 +363,9 @@ class FoamCutter:
         self.state = state
         return state
 
-    def _implicit_velocity(self, vx: float, vy: float, a: float, b: float, dt: float, x: float, y: float) -> tuple[float, float]:
-        """End-of-step in-plane velocity of the cutter point under the damper D = [[a, −b], [b, a]]."""
+    def _implicit_feed(self, vx: float, vy: float, ex: float, ey: float, a: float, b: float, dt: float,
+                       x: float, y: float) -> float:
+        """End-of-step feed speed along (ex, ey) under the cutting force −s·(a·e_f + b·e_n), ≥ 0."""
         model, data = self.model, self.data
         jac = self._jac
         mujoco.mj_jac(model, data, jac, None, np.array([x, y, self._z_mid]), self.body)
@@ -372,12 +374,10 @@ class FoamCutter:
         mujoco.mj_solveM(model, data, minv_jt, jxy)
         inv_l = jxy @ minv_jt.T  # 2×2 inverse inertia at the point
         acc = jxy @ data.qacc - inv_l @ self._applied_force[:2]  # last step's, without the cutting force
-        wx, wy = vx + dt * float(acc[0]), vy + dt * float(acc[1])
-        # (I + dt·L·D) v' = w
-        d = np.array([[a, -b], [b, a]])
-        system = np.eye(2) + dt * inv_l @ d
-        v = np.linalg.solve(system, np.array([wx, wy]))
-        return float(v[0]), float(v[1])
+        w = (vx + dt * float(acc[0])) * ex + (vy + dt * float(acc[1])) * ey
+        g = np.array([a * ex - b * ey, a * ey + b * ex])
+        gain = float(np.array([ex, ey]) @ inv_l @ g)
+        return max(w, 0.0) / (1.0 + dt * max(gain, 0.0))
 
     def _apply(self, fx: float, fy: float, x: float, y: float, z: float, torque: float, omega: float, dt: float) -> None:
         """Add the in-plane cutter force (at (x, y, z)) to the housing and the load torque to the spindle."""
@@ -608,7 +608,7 @@ class CuttingObserver:
     def after_physics_step(self, sim: Any) -> None:
         """Nothing per step after MuJoCo's: removal happens before it."""
 
-    def after_tick(self, sim: Any) -> str | None:
+    def after_tick(self, _sim: Any) -> str | None:
         self.cutter.after_step()
         return None
 
