@@ -59,7 +59,7 @@ def main() -> int:
     print()
     print("| section | r_max (mm) | leaf r (mm) | peak strain at 90° | K_bend (N·m/rad) | EI_sec (N·m²) | K_twist ball (N·m/rad) | T to hold 90° (N) | worst direction (N) |")
     print("|---|---|---|---|---|---|---|---|---|")
-    for name, geometry in (("today (r = 0)", _with_radius(base, 0.0)), ("strain-limited", strain_limited_geometry(base))):
+    for name, geometry in (("r = 0 (old default)", _with_radius(base, 0.0)), ("strain-limited", strain_limited_geometry(base))):
         for k, s in enumerate(geometry.sections):
             kx, _, kz = segment_stiffness(geometry, s)
             t = bend_tension(geometry, k)
@@ -88,7 +88,7 @@ def holding_table(base: ArmGeometry) -> None:
     options = ModelOptions(joint="ball")
     print("| segments | section at 90° (others straight): worst tension over directions (N) | all three at 90°, worst S-shape (N) |")
     print("|---|---|---|")
-    for name, geometry in (("today (r = 0)", _with_radius(base, 0.0)), ("strain-limited", strain_limited_geometry(base))):
+    for name, geometry in (("r = 0 (old default)", _with_radius(base, 0.0)), ("strain-limited", strain_limited_geometry(base))):
         model = mujoco.MjModel.from_xml_string(build_single_arm_model(geometry, options, gravity=False).to_xml_string())
         single = []
         for k, s in enumerate(geometry.sections):

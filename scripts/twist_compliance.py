@@ -24,7 +24,8 @@ POSES = {"planar (60,0,30,0,0,0)°": (60, 0, 30, 0, 0, 0), "spatial (45,30,60,20
 
 def main() -> int:
     base = ScenarioConfig.default()
-    leaves = {"today (r = 0)": base.arm, "strain-limited": strain_limited_geometry(base.arm)}
+    on_axis = dataclasses.replace(base.arm, sections=tuple(dataclasses.replace(s, leaf_radius=0.0) for s in base.arm.sections))
+    leaves = {"r = 0 (old default)": on_axis, "strain-limited": strain_limited_geometry(on_axis)}
     print("| pose | leaves | joint | tool error without gravity (mm) | with gravity (mm) | max cable tension (N) |")
     print("|---|---|---|---|---|---|")
     for pose_name, pose in POSES.items():
