@@ -60,7 +60,28 @@ _EXPORTS = {
     "tool_centre_pose": "kinematics",
 }
 
-__all__ = sorted(_EXPORTS)
+__all__ = [
+    "ArmGeometry",
+    "ConfigError",
+    "IKOptions",
+    "IKResult",
+    "Material",
+    "SectionGeometry",
+    "StepLimits",
+    "ToolGeometry",
+    "cable_length_changes",
+    "cable_lengths",
+    "continuous_forward_kinematics",
+    "disk_frames",
+    "forward_kinematics",
+    "jacobian",
+    "motor_angles",
+    "solve_ik",
+    "solve_path",
+    "straight_cable_lengths",
+    "tool_centre_pose",
+]
+assert sorted(__all__) == sorted(_EXPORTS)
 
 
 def __getattr__(name: str) -> Any:

@@ -387,7 +387,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
 def _cmd_workspace(args: argparse.Namespace) -> int:
     from .configio import atomic_write_text, check_output_dir
-    from .toolpath import gripper_poses, grinder_poses
+    from .toolpath import grinder_poses, gripper_poses
     from .workspace import WorkspaceConfig, check_poses, compute_workspace, plot_workspace
 
     geometry = _load_geometry(args.config)
@@ -399,7 +399,7 @@ def _cmd_workspace(args: argparse.Namespace) -> int:
     gp, hp = grinder_poses(layout, cfg), gripper_poses(layout, cfg)
     summary = ws.summary()
     task = {}
-    for arm, poses, mode in (("left", gp, "axis"), ("right", hp, "full")):
+    for arm, poses, _mode in (("left", gp, "axis"), ("right", hp, "full")):
         pts = np.array([p[:3, 3] for p in poses.values()])
         inside = ws.arm(arm).contains(pts, dilate=1)
         task[arm] = {name: bool(v) for name, v in zip(poses, inside)}
@@ -546,7 +546,7 @@ class _Terminated(BaseException):
 class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors; subcommand parsers inherit it (argparse uses type(parent))."""
 
-    def error(self, message: str) -> NoReturn:  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:
         self.exit(EXIT_USAGE, f"{self.prog}: error: {_clip(message)} (see {self.prog} --help)\n")
 
 

@@ -30,7 +30,7 @@ class ConfigError(ValueError):
         self.message = message
         super().__init__(f"{field}: {message}")
 
-    def under(self, prefix: str) -> "ConfigError":
+    def under(self, prefix: str) -> ConfigError:
         """The same error with its field path prefixed by the parent's path."""
         if not prefix:
             return self
@@ -151,7 +151,7 @@ def _convert(tp: Any, value: Any, field: str) -> Any:
         if value not in get_args(tp):
             raise ConfigError(field, f"must be {_type_name(tp)} (got {shorten(value)})")
         return value
-    if dataclasses.is_dataclass(tp):
+    if isinstance(tp, type) and dataclasses.is_dataclass(tp):
         if isinstance(value, tp):
             return value
         if not isinstance(value, dict):
@@ -196,7 +196,7 @@ def from_dict(cls: type[T], data: dict[str, Any], prefix: str = "") -> T:
     if not isinstance(data, dict):
         raise ConfigError(prefix or cls.__name__, f"must be a table (got {type(data).__name__})")
     hints = get_type_hints(cls)
-    names = [f.name for f in dataclasses.fields(cls) if f.init]
+    names = [f.name for f in dataclasses.fields(cls) if f.init]  # type: ignore[arg-type]  # T is a dataclass type
     for key in data:
         if key not in names:
             where = f"{prefix}.{key}" if prefix else key
@@ -206,7 +206,7 @@ def from_dict(cls: type[T], data: dict[str, Any], prefix: str = "") -> T:
         if name in data:
             where = f"{prefix}.{name}" if prefix else name
             kwargs[name] = _convert(hints[name], data[name], where)
-    required = [f.name for f in dataclasses.fields(cls)
+    required = [f.name for f in dataclasses.fields(cls)  # type: ignore[arg-type]
                 if f.init and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
     for name in required:
         if name not in data:
@@ -383,7 +383,7 @@ def load_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
     return parse_toml_text(read_config_text(path), str(path))
 
 
-def config_from_file(path: str | os.PathLike[str], build: "Callable[[dict[str, Any]], T]") -> T:
+def config_from_file(path: str | os.PathLike[str], build: Callable[[dict[str, Any]], T]) -> T:
     """``build(toml_dict)`` for the file at ``path``; every error names the file, once."""
     try:
         return build(load_toml(path))

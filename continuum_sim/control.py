@@ -284,6 +284,6 @@ def _solve_spd(A: Array, b: Array) -> Array:
     """A⁻¹ b for a symmetric positive definite A: LAPACK's posv, a third of np.linalg.solve's overhead."""
     _, x, info = _dposv()(A, b)
     if info != 0:
-        return np.linalg.solve(A, b)
+        return np.linalg.solve(A, b)  # type: ignore[return-value]
     return x
 

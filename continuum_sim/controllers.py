@@ -23,7 +23,7 @@ import importlib
 import os
 import sys
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -149,7 +149,7 @@ class PlanTrackingController:
     are shut on the still-welded sample (``ArmController.update``'s ``holding``).
     """
 
-    def __init__(self, mode: str | None = None) -> None:
+    def __init__(self, mode: Literal["open", "closed"] | None = None) -> None:
         self.mode = mode
         self._arms: dict[str, Any] = {}
 

@@ -30,7 +30,7 @@ or the plan's end without success). ``info`` holds ``success`` and ``failure``.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 import gymnasium as gym
 import numpy as np
@@ -48,7 +48,7 @@ HELD_DISTANCE_M = 0.05  # the sample is held when within this of the gripper's t
 class CorrectedController(PlanTrackingController):
     """The built-in controller following the plan shifted by a bending-coordinate offset per arm."""
 
-    def __init__(self, mode: str) -> None:
+    def __init__(self, mode: Literal["open", "closed"]) -> None:
         super().__init__(mode)
         self.offset: dict[str, NDArray[np.float64]] = {}
 
@@ -71,7 +71,7 @@ class SampleRemovalEnv(gym.Env[dict[str, Any], NDArray[np.float32]]):
         *,
         ticks_per_step: int = 5,
         max_correction_rad: float = 0.05,
-        base_controller: str = "closed",
+        base_controller: Literal["open", "closed"] = "closed",
         stages: tuple[str, ...] | None = None,
         render_mode: str | None = None,
     ) -> None:
@@ -112,15 +112,18 @@ class SampleRemovalEnv(gym.Env[dict[str, Any], NDArray[np.float32]]):
         })
         self._renderer: Any = None
         self.sim: Any = None
+        self.loop: Any = None
 
     # ------------------------------------------------------------------ gym API
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, Any], dict[str, Any]]:
         import dataclasses
 
         from .scenario.runner import make_simulation
         from .scenario.simulate import CutterObserver, HealthCheck, TickLoop
 
-        super().reset(seed=seed)
+        super().reset(seed=seed, options=options)  # no options of its own
         cfg = self.config
         if seed is not None:  # the seed drives the (optional) sensor noise, as simulation.seed does for a run
             cfg = dataclasses.replace(cfg, simulation=dataclasses.replace(cfg.simulation, seed=int(seed)))

@@ -263,16 +263,16 @@ class ArmGeometry:
 
     # -------------------------------------------------------------- construction
     @classmethod
-    def default(cls) -> "ArmGeometry":
+    def default(cls) -> ArmGeometry:
         """SPEC §1's arm (paper Table 1 plus the documented assumptions)."""
         return cls()
 
     @classmethod
-    def from_dict(cls, data: dict) -> "ArmGeometry":
+    def from_dict(cls, data: dict) -> ArmGeometry:
         return from_dict(cls, data)
 
     @classmethod
-    def from_toml(cls, path: str | os.PathLike[str]) -> "ArmGeometry":
+    def from_toml(cls, path: str | os.PathLike[str]) -> ArmGeometry:
         """Load from TOML; errors name the file and the field."""
         return config_from_file(path, lambda data: from_dict(cls, data))
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Literal, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -33,7 +33,9 @@ from .geometry import ArmGeometry
 
 # LAPACK's Cholesky routines (a tenth of np.linalg.solve's call overhead on 6×6), loaded by
 # the first solver: importing scipy costs ~0.3 s, which loading a configuration should not pay.
-_dposv = _dpotrf = _dpotrs = None
+_dposv: Any = None
+_dpotrf: Any = None
+_dpotrs: Any = None
 
 
 def _load_lapack() -> None:
@@ -193,7 +195,7 @@ class Evaluation(NamedTuple):
     """The weighted residual at solver variables x (``IKSolver.evaluate``)."""
 
     residual: list[float]
-    jacobian: Array | None  # None when derivatives were not asked for
+    jacobian: Any  # (n_res, n_vars) array; None when derivatives were not asked for
     position_error: float  # m
     orientation_error: float  # rad
     rotation: list[float]  # tool rotation, row-major 3×3
@@ -216,7 +218,7 @@ class ChordIterate(NamedTuple):
 
     x: list[float]
     residual: list[float]
-    jacobian: Array | None
+    jacobian: Any  # array, or None
     position_error: float
     orientation_error: float
     rotation: list[float]
@@ -598,7 +600,7 @@ class IKSolver:
             self._seeds = (X, T[:, :3, 3], T[:, :3, :3])
         return self._seeds
 
-    def _seed_order(self, target: Array) -> Array:
+    def _seed_order(self, target: Array) -> NDArray[np.intp]:
         X, P, R = self.seed_table()
         k1, k2 = self.options.position_weight, self.options.orientation_weight
         score = k1**2 * np.sum((P - target[:3, 3]) ** 2, axis=1)
@@ -642,6 +644,7 @@ class IKSolver:
             cand = (self._weighted(ep, eo), x, ep, eo, R, p)
             if best is None or cand[0] < best[0]:
                 best = cand
+        assert best is not None  # n_starts >= 1 (IKOptions)
         _, x, ep, eo, R, p = best
         return Solution(x, ep, eo, total, False, self._failure_message(target, ep, eo), R, p)
 
@@ -835,7 +838,7 @@ class PathSolution:
     failed_index: int = -1  # first input point that failed, -1 if none
 
     @property
-    def original(self) -> Array:
+    def original(self) -> NDArray[np.bool_]:
         """Mask of the rows that are input toolpath points (not inserted)."""
         return np.isclose(self.source, np.round(self.source))
 

@@ -562,7 +562,7 @@ class CableKernel:
         """(n_cables,) cable lengths at bending coordinates ``w``."""
         coefficients = []
         for m, (n, half) in enumerate(self._sections):
-            rx, ry = -float(w[2 * m + 1]) / n, float(w[2 * m]) / n  # rotation vector (rx, ry, 0)
+            rx, ry = -float(w[2 * m + 1]) / n, float(w[2 * m]) / n  # type: ignore[arg-type, index]  # rotation vector (rx, ry, 0)
             angle2 = rx * rx + ry * ry
             angle = math.sqrt(angle2)
             A = _sinc_scalar(angle)

@@ -30,7 +30,7 @@ from . import kinematics as kin
 from .configio import ConfigError, require_positive, require_range
 from .geometry import ArmGeometry
 from .ik import IKOptions, StepLimits, interpolate_pose, interpolate_q, solve_path
-from .layout import ARMS, TaskLayout
+from .layout import TaskLayout
 from .workspace import UnreachableError, check_poses
 
 Array = NDArray[np.float64]
@@ -218,14 +218,14 @@ class _Move:
         s = trapezoid_position(tau, self.distance, self.speed, self.accel)
         if self.knots_q is None:  # joint-space move: eq. 12 between the two ends
             f = s / self.distance if self.distance > 0 else np.ones_like(s)
-            return interpolate_q(self.q_start, self.q_end, f, self.phase, self.phase_free_below)
+            return interpolate_q(self.q_start, self.q_end, f, self.phase, self.phase_free_below)  # type: ignore[arg-type]
         out = np.empty(tau.shape + (self.q_start.size,))
-        idx = np.clip(np.searchsorted(self.knots_s, s, side="right") - 1, 0, len(self.knots_s) - 2)
+        idx = np.clip(np.searchsorted(self.knots_s, s, side="right") - 1, 0, len(self.knots_s) - 2)  # type: ignore[arg-type, call-overload]
         for i in np.unique(idx):
             sel = idx == i
-            s0, s1 = self.knots_s[i], self.knots_s[i + 1]
+            s0, s1 = self.knots_s[i], self.knots_s[i + 1]  # type: ignore[index]
             f = np.clip((s[sel] - s0) / (s1 - s0), 0.0, 1.0) if s1 > s0 else np.ones(int(sel.sum()))
-            out[sel] = interpolate_q(self.knots_q[i], self.knots_q[i + 1], f, self.phase, self.phase_free_below)
+            out[sel] = interpolate_q(self.knots_q[i], self.knots_q[i + 1], f, self.phase, self.phase_free_below)  # type: ignore[arg-type]
         return out
 
 
@@ -270,7 +270,7 @@ class _ArmPlanner:
     def path_move(self, stage: int, segment: str, poses: list[Array], q_start: Array, speed: float, **flags) -> _Move:
         cfg = self.cfg
         targets = densify(poses, cfg.waypoint_spacing, cfg.rotation_radius)
-        sol = solve_path(self.geometry, targets, q_start, self.orientation, self.phase, tool=self.mount.tool,
+        sol = solve_path(self.geometry, targets, q_start, self.orientation, self.phase, tool=self.mount.tool,  # type: ignore[arg-type]
                          base=self.base, options=cfg.ik, limits=cfg.limits)
         if not sol.success:
             raise UnreachableError(
@@ -342,9 +342,9 @@ def gripper_poses(layout: TaskLayout, cfg: PlanConfig) -> dict[str, Array]:
 
 def _nearest_solution(planner: _ArmPlanner, pose: Array, q_ref: Array, cfg: PlanConfig) -> Array:
     """IK of ``pose`` among the cold-start solutions, the one nearest ``q_ref`` in bending coordinates."""
-    from .ik import get_solver, _to_arm_frame
+    from .ik import _to_arm_frame, get_solver
 
-    solver = get_solver(planner.geometry, planner.orientation, planner.phase, planner.mount.tool, 0.0, cfg.ik)
+    solver = get_solver(planner.geometry, planner.orientation, planner.phase, planner.mount.tool, 0.0, cfg.ik)  # type: ignore[arg-type]
     target = _to_arm_frame(pose, planner.base)
     X = solver.seed_table()[0]
     best = None
@@ -628,8 +628,8 @@ def _metrics(geometry, layout, cfg, cat, q_left, q_right, tcp_left, tcp_right, w
     return {
         "duration_s": float(cat["t"][-1]),
         "samples": int(cat["t"].size),
-        **_closest("arm", clearance, np.arange(clearance.size), cat),
-        **_closest("sample", sample_gaps, carried, cat),
+        **_closest("arm", clearance, np.arange(clearance.size), cat),  # type: ignore[arg-type]
+        **_closest("sample", sample_gaps, carried, cat),  # type: ignore[arg-type]
         "min_plate_clearance_left_m": float(plate_clearance(geometry, layout, q_left, "left").min()),
         "min_plate_clearance_right_m": float(plate_clearance(geometry, layout, q_right, "right").min()),
         "cut_path_max_deviation_m": float(dev.max()) if dev.size else 0.0,
@@ -677,7 +677,7 @@ def save_plan(plan: TaskPlan, path) -> None:
     atomic_write_bytes(path, buf.getvalue())
 
 
-def planar_demo_path(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig, n_points: int = 25) -> Array:
+def planar_demo_path(layout: TaskLayout, cfg: PlanConfig, n_points: int = 25) -> Array:
     """A straight cut in the grinder arm's own x-z plane (the setting of paper Fig. 10/11).
 
     Same height, spindle direction and distance range from the arm base as the task's
@@ -699,7 +699,7 @@ def solve_planar_demo(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig
     """The planar demo path solved in both phase modes from the same cold-started first point."""
     from .ik import solve_ik
 
-    poses = planar_demo_path(geometry, layout, cfg)
+    poses = planar_demo_path(layout, cfg)
     base = layout.left.base_transform()
     out = {}
     for phase in ("free", "planar"):

@@ -34,7 +34,6 @@ from typing import Any
 
 import numpy as np
 
-
 # Tessellation used for the video: MuJoCo's defaults are (28, 16); thin cables and 40 mm
 # disks look the same at 640×480 with (14, 6), and software GL renders ~2× faster.
 VIDEO_SLICES = {"fast": (14, 6), "fine": (28, 16)}
@@ -333,7 +332,7 @@ class VideoRecorder:
             if self._tmp.exists():
                 self._tmp.unlink()
 
-    def __enter__(self) -> "VideoRecorder":
+    def __enter__(self) -> VideoRecorder:
         return self
 
     def __exit__(self, exc_type: object, exc: object, tb: object) -> None:

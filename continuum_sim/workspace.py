@@ -76,7 +76,7 @@ class VoxelSet:
     keys: frozenset
 
     @classmethod
-    def from_points(cls, points: Array, voxel: float) -> "VoxelSet":
+    def from_points(cls, points: Array, voxel: float) -> VoxelSet:
         idx = np.floor(np.asarray(points) / voxel).astype(np.int64)
         return cls(voxel, frozenset(map(tuple, np.unique(idx, axis=0).tolist())))
 
@@ -93,7 +93,7 @@ class VoxelSet:
         keys = self.keys
         return np.array([any((a + i, b + j, c + k) in keys for i, j, k in offsets) for a, b, c in idx.tolist()])
 
-    def __and__(self, other: "VoxelSet") -> "VoxelSet":
+    def __and__(self, other: VoxelSet) -> VoxelSet:
         if not math.isclose(self.voxel, other.voxel):
             raise ValueError("voxel sizes differ")
         return VoxelSet(self.voxel, self.keys & other.keys)
@@ -225,7 +225,7 @@ def check_poses(geometry: ArmGeometry, layout: TaskLayout, arm: str, poses: list
     mount = layout.mount(arm)
     results = []
     for name, pose in poses:
-        res = solve_ik(geometry, pose, orientation, phase, tool=mount.tool, base=mount.base_transform(), options=options)
+        res = solve_ik(geometry, pose, orientation, phase, tool=mount.tool, base=mount.base_transform(), options=options)  # type: ignore[arg-type]
         if not res.success:
             p = 1000 * np.asarray(pose)[:3, 3]
             hint = ""

@@ -226,7 +226,7 @@ class MotorDrive:
         grip = int(handles.gripper_actuator)
         ratings = MotorRatings(tools.gripper_cable_speed, tools.gripper_max_force, options.motor_kp, options.motor_ki)
         self.gripper = MotorBank(
-            model, [grip], [int(model.actuator_trnid[grip, 0])], ratings, ideal=options.cable_model == "lumped"
+            model, [grip], [int(model.actuator_trnid[grip, 0])], ratings, ideal=options.cable_model == "lumped"  # type: ignore[arg-type]
         )
         self.spindle = int(handles.spindle_actuator)
 

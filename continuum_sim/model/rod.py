@@ -113,8 +113,8 @@ class RodSpec:
             damping=self.damping,
             shape="capsule",
         )
-        inner = LinkSpec(mass=self.mass_per_length * h, **common)
-        tip = LinkSpec(mass=self.mass_per_length * h / 2.0, **common)
+        inner = LinkSpec(mass=self.mass_per_length * h, **common)  # type: ignore[arg-type]
+        tip = LinkSpec(mass=self.mass_per_length * h / 2.0, **common)  # type: ignore[arg-type]
         return [inner] * (self.n_links - 1) + [tip]
 
 
@@ -200,6 +200,6 @@ def centreline(spec: RodSpec, positions: Array, rotations: Array, s: ArrayLike) 
     centreline is exact, not interpolated.
     """
     s = np.clip(np.asarray(s, dtype=float), 0.0, spec.length)
-    i = np.clip(np.rint(s / spec.pitch).astype(int), 0, spec.n_links)
+    i = np.clip(np.rint(s / spec.pitch).astype(int), 0, spec.n_links)  # type: ignore[operator]
     offset = s - i * spec.pitch
     return positions[i] + offset[..., None] * rotations[i][..., :, 0]

@@ -26,7 +26,6 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-
 from dm_control import mjcf
 
 from ..configio import ConfigError
@@ -88,7 +87,7 @@ def _box(body: mjcf.Element, name: str, lo: tuple[float, float, float], hi: tupl
 
 
 # ------------------------------------------------------------------ parts
-def _add_assets_and_visuals(root: mjcf.RootElement, layout: TaskLayout, scene: SceneOptions) -> None:
+def _add_assets_and_visuals(root: mjcf.RootElement, scene: SceneOptions) -> None:
     root.asset.add("texture", name="sky", type="skybox", builtin="gradient", rgb1=(0.3, 0.5, 0.7), rgb2=(0, 0, 0), width=512, height=3072)
     root.asset.add(
         "texture", name="floor", type="2d", builtin="checker", rgb1=(0.2, 0.3, 0.4), rgb2=(0.1, 0.2, 0.3), width=512, height=512, mark="cross", markrgb=(0.8, 0.8, 0.8)
@@ -187,12 +186,12 @@ def _add_plate(root: mjcf.RootElement, layout: TaskLayout, scene: SceneOptions, 
     # The sample: nominal corner rectangle, pulled back from the kerf by sample_gap on its
     # two inner sides (its outer sides stay flush with the plate edges).
     g = scene.sample_gap
-    lo = np.array([plate.corner_x - plate.sample_x + g, plate.corner_y, bottom])
-    hi = np.array([plate.corner_x, plate.corner_y + plate.sample_y - g, top])
-    centre = (lo + hi) / 2
-    sample = root.worldbody.add("body", name=SAMPLE_BODY, pos=tuple(centre))
+    lo = np.array([plate.corner_x - plate.sample_x + g, plate.corner_y, bottom])  # type: ignore[assignment]
+    hi = np.array([plate.corner_x, plate.corner_y + plate.sample_y - g, top])  # type: ignore[assignment]
+    centre = (lo + hi) / 2  # type: ignore[operator]
+    sample = root.worldbody.add("body", name=SAMPLE_BODY, pos=tuple(centre))  # type: ignore[arg-type]
     sample.add("freejoint", name=SAMPLE_BODY)
-    sample.add("geom", name=SAMPLE_BODY, type="box", size=tuple((hi - lo) / 2), density=plate.density, material="sample", **foam)
+    sample.add("geom", name=SAMPLE_BODY, type="box", size=tuple((hi - lo) / 2), density=plate.density, material="sample", **foam)  # type: ignore[operator]
     sample.add("site", name="sample_centre", size=(0.002,), rgba=(0, 0, 1, 0.6))
     # Anchor at the sample's centre (given in the plate's frame): a weld anchored far away
     # lets a light body swing about the anchor. Stiff (5 timesteps): it is glue, not foam.
@@ -242,8 +241,6 @@ def _attach_tool(
         options,
         scene.tools,
         plate.kerf_width,
-        plate.contact_solref,
-        plate.contact_solimp,
         arm_collision_bits(arm),
         pad_tilt_deg=layout.grasp.tilt_deg,
     )
@@ -296,7 +293,7 @@ def build_scene(
     root = mjcf.RootElement(model=SCENE_MODEL)
     apply_simulation_options(root, options)
     root.compiler.autolimits = True
-    _add_assets_and_visuals(root, layout, scene)
+    _add_assets_and_visuals(root, scene)
     _add_environment(root, layout, scene)
     _add_plate(root, layout, scene, options.timestep)
     _add_cameras(root, layout)

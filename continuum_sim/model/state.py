@@ -71,7 +71,7 @@ def arm_qpos_addresses(model, arm: str, n_joints: int, joint: str) -> np.ndarray
     """qpos addresses of an arm's joints, in disk order (ball: 4 each, hinge_pair: 2, hinge_triple: 3)."""
     import mujoco
 
-    addresses = []
+    addresses: list[int] = []
     for i in range(1, n_joints + 1):
         if joint == "ball":
             jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{arm}/joint_{i}")

@@ -288,16 +288,10 @@ def build_tool(
     options: ModelOptions,
     tools: ToolOptions,
     cutter_diameter: float,
-    contact_solref: tuple[float, float],
-    contact_solimp: tuple[float, float, float],
     collision: tuple[int, int] = (1, 1),
     pad_tilt_deg: float = 0.0,
 ) -> mjcf.RootElement | None:
-    """The named tool's model (``None`` for ``"none"``).
-
-    ``contact_solref``/``contact_solimp`` (the foam's contact) are not used by either tool
-    since the cutter meets voxel material instead of contacts; kept for existing callers.
-    """
+    """The named tool's model (``None`` for ``"none"``)."""
     if tool == GRINDER:
         return build_grinder(geometry, options, tools, cutter_diameter, collision)
     if tool == GRIPPER:

@@ -79,7 +79,7 @@ class ScenarioConfig:
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
 
     @classmethod
-    def default(cls) -> "ScenarioConfig":
+    def default(cls) -> ScenarioConfig:
         """The shipped defaults (``continuum_sim/data/scenario.toml``)."""
         text = resources.files("continuum_sim").joinpath("data/scenario.toml").read_text()
         import tomllib
@@ -87,7 +87,7 @@ class ScenarioConfig:
         return from_dict(cls, tomllib.loads(text))
 
     @classmethod
-    def from_toml(cls, path: str | os.PathLike[str]) -> "ScenarioConfig":
+    def from_toml(cls, path: str | os.PathLike[str]) -> ScenarioConfig:
         """A user file over the shipped defaults; errors name the file and the field."""
         return config_from_file(path, lambda data: merged(cls.default(), data))
 

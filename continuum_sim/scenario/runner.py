@@ -22,18 +22,26 @@ import numpy as np
 
 from .. import kinematics as kin
 from ..configio import atomic_write_text
-from ..limits import check_run_length, check_scenario
 from ..controllers import ControlContext, Controller, controller_spec, load_controller
+from ..limits import check_run_length, check_scenario
 from ..model.handles import SceneHandles
-from ..model.options import model_geometry
 from ..model.motors import MotorDrive
+from ..model.options import model_geometry
 from ..model.state import set_arm_configuration
 from ..toolpath import TaskPlan, plan_task
 from . import metrics as met
-from .config import ScenarioConfig
 from .cable_friction import CableFrictionObserver
+from .config import ScenarioConfig
 from .simulate import (
-    CutterObserver, HealthCheck, NoisyMeasurement, Observer, ProgressObserver, Recorder, Simulation, VideoObserver, simulate,
+    CutterObserver,
+    HealthCheck,
+    NoisyMeasurement,
+    Observer,
+    ProgressObserver,
+    Recorder,
+    Simulation,
+    VideoObserver,
+    simulate,
 )
 from .trajectory import ArmTrajectory, Trajectory
 

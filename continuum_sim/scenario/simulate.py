@@ -83,7 +83,7 @@ class Observer:
     def after_physics_step(self, sim: Simulation) -> None:
         """After every ``mj_step``."""
 
-    def after_tick(self, sim: Simulation) -> str | None:
+    def after_tick(self, sim: Simulation) -> str | None:  # noqa: ARG002 - a no-op default hook
         """After the tick's physics steps; return a message to stop the run (it is recorded as the failure)."""
         return None
 
@@ -320,7 +320,7 @@ class VideoObserver(Observer):
         self.video.maybe_capture(sim.data)
         return None
 
-    def close(self, sim: Simulation) -> None:
+    def close(self, sim: Simulation) -> None:  # noqa: ARG002 - the hook's signature
         self.video.close()
 
 

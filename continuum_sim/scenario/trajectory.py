@@ -96,8 +96,9 @@ class Trajectory:
 
     def to_bytes(self) -> bytes:
         buffer = io.BytesIO()
-        np.savez_compressed(buffer, **self.series(), **self.cutting, stage_names=np.array(self.stage_names),
-                            meta=np.array(json.dumps(self._meta())))
+        arrays: dict[str, Any] = {**self.series(), **self.cutting, "stage_names": np.array(self.stage_names),
+                                   "meta": np.array(json.dumps(self._meta()))}
+        np.savez_compressed(buffer, **arrays)
         return buffer.getvalue()
 
     def save(self, path: str | os.PathLike[str]) -> None:
@@ -132,16 +133,16 @@ class Trajectory:
         )
 
 
-def _cutting_arrays(data: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """The cutter's record among the saved arrays (none in runs saved before the foam cutter)."""
-    from ..model.cutting import CUTTING_ARRAYS
-
-    return {key: data[key] for key in CUTTING_ARRAYS if key in data}
-
-
 def _arm_series(data: dict[str, np.ndarray], arm: str, name: str) -> np.ndarray:
     """One saved per-arm series; runs saved before cable friction existed had no loss (ratio 1)."""
     key = f"{arm}_{name}"
     if key not in data and name == "cable_anchor_ratio":
         return np.ones_like(data[f"{arm}_cable_tension"])
     return data[key]
+
+
+def _cutting_arrays(data: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The cutter's record among the saved arrays (none in runs saved before the foam cutter)."""
+    from ..model.cutting import CUTTING_ARRAYS
+
+    return {key: data[key] for key in CUTTING_ARRAYS if key in data}

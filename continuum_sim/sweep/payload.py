@@ -12,14 +12,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
+from dm_control import mjcf
 
 from ..model import names
 from ..model.arm import arm_collision_bits
 from ..model.options import model_geometry
-
-import mujoco
-from dm_control import mjcf
 
 PAYLOAD_BODY = "payload"
 
@@ -53,8 +52,6 @@ def tool_payload(config, tool: str) -> Payload:
         options,
         config.scene.tools,
         plate.kerf_width,
-        plate.contact_solref,
-        plate.contact_solimp,
         arm_collision_bits(names.SINGLE_ARM),
         pad_tilt_deg=config.layout.grasp.tilt_deg,
     )

@@ -49,7 +49,7 @@ def choose_mode(spec: SweepSpec, backend: Backend, batch: Batch) -> str:
     return "shared"
 
 
-def preflight(spec: SweepSpec, backend: Backend, workers: int | None) -> None:
+def preflight(backend: Backend, workers: int | None) -> None:
     """Checks that need the installation, not the spec; still before any work."""
     if workers is not None and not 1 <= workers <= 4096:
         raise ConfigError("--workers", f"must satisfy 1 <= workers <= 4096 (got {workers})")
@@ -73,7 +73,7 @@ def run_sweep(
 
     if address is not None and backend != "ray":
         raise ConfigError("--address", "only applies to --backend ray")
-    preflight(spec, backend, workers)
+    preflight(backend, workers)
     mode = choose_mode(spec, backend, batch)
     if backend == "ray" and address is not None:
         backends.probe_address(address)  # before the folder is touched

@@ -25,14 +25,12 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
-from ..configio import to_dict
-
 import mujoco
+import numpy as np
 from mujoco import rollout
 
 from .. import kinematics as kin
+from ..configio import to_dict
 from ..control import ArmController
 from ..model import names
 from ..model.arm import build_single_arm_model, section_links
@@ -192,7 +190,7 @@ def prepare(model: mujoco.MjModel, config: ScenarioConfig, evaluation: Evaluatio
     """Initial state (the planned pose) and constant phase inputs of one variant."""
     options = model_options(config, evaluation)
     geom = model_geometry(config.arm, options)
-    q = np.radians(np.asarray(evaluation.q_deg, dtype=float))
+    q = np.radians(np.asarray(evaluation.q_deg, dtype=float))  # type: ignore[attr-defined, type-var]
     data = mujoco.MjData(model)
     set_arm_configuration(model, data, geom, names.SINGLE_ARM, q, options.joint)
     initial = np.empty(mujoco.mj_stateSize(model, FULL))
@@ -306,15 +304,15 @@ def _metrics(case: Case, final_a: np.ndarray, final_b: np.ndarray) -> dict[str, 
             "payload_kg": payload_mass(case.model),
         }
     force = case.force
-    unit = force / np.linalg.norm(force) if np.linalg.norm(force) > 0 else np.zeros(3)
+    unit = force / np.linalg.norm(force) if np.linalg.norm(force) > 0 else np.zeros(3)  # type: ignore[arg-type, operator]
     along = mm * float((p_b - p_a) @ unit)
     prediction = None
-    if case.evaluation.cables == "free" and not case.evaluation.gravity and np.linalg.norm(force) > 0:
+    if case.evaluation.cables == "free" and not case.evaluation.gravity and np.linalg.norm(force) > 0:  # type: ignore[arg-type, attr-defined]
         prediction = mm * float(np.linalg.norm(_linear_deflection(case, a)))
     return {
         "deflection_mm": mm * float(np.linalg.norm(p_b - p_a)),
         "deflection_along_force_mm": along,
-        "compliance_mm_per_n": along / case.evaluation.force_n if case.evaluation.force_n > 0 else None,
+        "compliance_mm_per_n": along / case.evaluation.force_n if case.evaluation.force_n > 0 else None,  # type: ignore[attr-defined]
         "linear_prediction_mm": prediction,
         "max_cable_tension_n": float(tension.max()) if tension.size else None,
         "residual_speed_rad_s": speed,

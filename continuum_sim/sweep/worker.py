@@ -57,7 +57,7 @@ def evaluate(config: ScenarioConfig, evaluation: Evaluation, run_dir: Path | Non
         from .static import evaluate_static
 
         return evaluate_static(config, evaluation)
-    return evaluate_scenario(config, evaluation, run_dir)
+    return evaluate_scenario(config, evaluation, run_dir)  # type: ignore[arg-type]
 
 
 def describe(exc: BaseException) -> str:

@@ -68,7 +68,7 @@ def build_replay_model(config: ScenarioConfig, arm: str, tool: str = "auto", gra
     site.attach(arm_model)
     plate = config.layout.plate
     tool_model = tools_mod.build_tool(tool, model_geometry(geometry, options), options, config.scene.tools,
-                                      plate.kerf_width, plate.contact_solref, plate.contact_solimp)
+                                      plate.kerf_width)
     if tool_model is not None:
         arm_model.find("site", "tool_mount").attach(tool_model)
     n_cables = geometry.n_cables

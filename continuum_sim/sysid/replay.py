@@ -95,7 +95,7 @@ def _rollout_chunks(models, datas, controls, sample_steps, nstep) -> list[Array]
         state = np.ascontiguousarray(states[:, -1, :])
         if not np.all(np.isfinite(state)):
             bad = ~np.all(np.isfinite(state), axis=1)
-            for i in np.flatnonzero(bad):
+            for i in np.flatnonzero(bad):  # type: ignore[assignment]
                 out[i][sample_steps >= start] = np.nan
             state[bad] = 0.0
     return out

@@ -53,7 +53,7 @@ def arc_angle(moment: float, length: float, ei: float) -> float:
     return moment * length / ei
 
 
-def arc_point(moment: float, length: float, ei: float, s: float | np.ndarray) -> np.ndarray:
+def arc_point(moment: float, ei: float, s: float | np.ndarray) -> np.ndarray:
     """(along, across) coordinates of the arc at arc length ``s`` from the clamp."""
     kappa = moment / ei
     s = np.asarray(s, dtype=float)

@@ -102,7 +102,7 @@ def load_statics(rod: SorosimRod, directory: Path | None = None) -> list[StaticC
         values = np.array([[float(v) for v in row[1:]] for row in block])  # (6, 3 + stations)
         eul, pos = values[:3], values[3:]
 
-        def wrench(col: int) -> Array:
+        def wrench(col: int, pos: Array = pos, eul: Array = eul) -> Array:  # this iteration's rows
             return np.concatenate([pos[:, col], eul[:, col]])  # force from P rows, moment from Eul rows
 
         cases.append(

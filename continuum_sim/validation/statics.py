@@ -74,8 +74,8 @@ class StaticSolver:
         mj.mj_rne(m, d, 0, self._bias)
         f = d.qfrc_passive - self._bias
         if loaded is None:
-            loaded = np.flatnonzero(np.any(wrenches != 0.0, axis=1))
-        for body in loaded:
+            loaded = np.flatnonzero(np.any(wrenches != 0.0, axis=1))  # type: ignore[assignment]
+        for body in loaded:  # type: ignore[union-attr]
             mj.mj_applyFT(m, d, wrenches[body, :3], wrenches[body, 3:], d.xipos[body], int(body), f)
         return f
 
@@ -134,7 +134,7 @@ class StaticSolver:
             return q
 
         sol = root(
-            lambda x: self.net_force(pose(x), wrenches, loaded),
+            lambda x: self.net_force(pose(x), wrenches, loaded),  # type: ignore[arg-type]
             np.zeros(m.nv),
             method="hybr",
             options={"xtol": self.options.tolerance},

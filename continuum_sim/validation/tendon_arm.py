@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..geometry import ArmGeometry
+from ..model import names as model_names
 from ..model.options import ModelOptions, model_geometry
 from ..model.stiffness import segment_stiffness
 from .cosserat import CosseratRobot, CosseratSolution, CosseratSolver, RodPiece, Tendon
@@ -124,11 +125,11 @@ class ArmStatics:
         self.model = mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
         self.model.tendon_stiffness[:] = 0.0
         self.data = mujoco.MjData(self.model)
-        names = [self.model.tendon(i).name for i in range(self.model.ntendon)]
-        self.cables = [names.index(f"arm/cable_{k}_{j}") for k in range(geometry.n_sections) for j in range(3)]
+        tendons = [self.model.tendon(i).name for i in range(self.model.ntendon)]
+        self.cables = [tendons.index(n) for n in model_names.arm_cable_names(model_names.SINGLE_ARM, geometry.n_sections)]
         n_disks = model_geometry(geometry, options).n_disks
-        self.tip_body = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, f"arm/disk_{n_disks}")
-        self.base_body = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, "arm/base")
+        self.tip_body = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, model_names.scoped(model_names.SINGLE_ARM, model_names.disk(n_disks)))
+        self.base_body = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, model_names.scoped(model_names.SINGLE_ARM, model_names.BASE_BODY))
 
     def solve(self, tensions: ArrayLike, gravity: ArrayLike = (0.0, 0.0, 0.0)) -> ArmPose:
         """Equilibrium under cable tensions (N, section-major, 3 per section) and gravity."""
