@@ -16,7 +16,8 @@ from continuum_sim.sweep.static import (
 )
 
 BASE = ScenarioConfig.default()
-SCALES = (0.5, 1.0, 2.0, 4.0, 8.0)
+# x16 around the shipped segments, within the motors' rating (at x4 a cable goes slack, at x8 they saturate)
+SCALES = (0.125, 0.25, 0.5, 1.0, 2.0)
 
 
 def variant(**paths):
@@ -41,7 +42,7 @@ def test_gravity_sag_falls_as_hinge_stiffness_rises():
     sag = np.array([r["sag_mm"] for r in results])
     assert np.all(np.diff(sag) < 0), sag
     assert sag[0] > 3 * sag[-1]  # a 16x stiffer arm sags several times less
-    assert sag[1] > 5.0  # the nominal open-loop arm sags visibly (cf. test_control)
+    assert sag[SCALES.index(1.0)] > 5.0  # the nominal open-loop arm sags visibly (cf. test_control)
     assert all(r["residual_speed_rad_s"] < 1e-2 for r in results)  # settled: a static answer
     # stiffer hinges need more cable tension to hold the same bend
     tension = np.array([r["max_cable_tension_n"] for r in results])

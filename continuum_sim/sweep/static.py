@@ -34,6 +34,7 @@ from ..configio import to_dict
 from ..control import ArmController
 from ..model import names
 from ..model.arm import build_single_arm_model, section_links
+from ..model.motors import cable_stiffness
 from ..model.options import ModelOptions, model_geometry
 from ..model.state import set_arm_configuration
 from ..scenario.config import ScenarioConfig
@@ -181,7 +182,8 @@ def _open_loop_ctrl(config: ScenarioConfig, options: ModelOptions, q: np.ndarray
     """The package's open-loop controller: planned cable lengths minus the pre-tension offset."""
     geom = model_geometry(config.arm, options)
     control = dataclasses.replace(config.control, mode="open")
-    controller = ArmController(geom, control, np.eye(4), tool_length, options.cable_kp)
+    # per-cable stiffness (elastic: EA/L; lumped: cable_kp), as the task's controller uses
+    controller = ArmController(geom, control, np.eye(4), tool_length, cable_stiffness(config.arm, options))
     pose = kin.tool_centre_pose(geom, q, tool_length)
     return controller.update(q, pose, pose[:3, 3], pose[:3, :3], 0.0)
 
