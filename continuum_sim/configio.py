@@ -24,6 +24,8 @@ class ConfigError(ValueError):
     """A configuration value is invalid; ``field`` is its dotted path."""
 
     def __init__(self, field: str, message: str) -> None:
+        if not field.isprintable():  # a key with a newline or control character: escape it, keep one line
+            field = repr(field)[1:-1]
         if len(field) > 200:  # a hostile key name: keep the message one readable line
             field = field[:120] + f"…({len(field)} characters)"
         self.field = field
