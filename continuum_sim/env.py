@@ -120,6 +120,7 @@ class SampleRemovalEnv(gym.Env[dict[str, Any], NDArray[np.float32]]):
     ) -> tuple[dict[str, Any], dict[str, Any]]:
         import dataclasses
 
+        from .scenario.cable_friction import CableFrictionObserver
         from .scenario.runner import make_simulation
         from .scenario.simulate import CutterObserver, HealthCheck, TickLoop
 
@@ -132,7 +133,8 @@ class SampleRemovalEnv(gym.Env[dict[str, Any], NDArray[np.float32]]):
         self.controller = CorrectedController(self.base_controller)
         self.sim = make_simulation(cfg, self.plan, self.model, self.controller)
         self.cutter = CutterObserver(self.sim)
-        self.loop = TickLoop(self.sim, [self.cutter, HealthCheck()])  # run_scenario's tick loop, one tick at a time
+        friction = CableFrictionObserver(cfg.model.cable_friction, 1)  # the same physics hooks as run_scenario
+        self.loop = TickLoop(self.sim, [self.cutter, friction, HealthCheck()])  # run's tick loop, one tick at a time
         self.n_ticks = int(np.ceil(self.end_time / self.sim.control_period))
         self._cut_fraction = 0.0
         self._cut_errors: list[float] = []
