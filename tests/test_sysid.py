@@ -6,6 +6,7 @@ with hidden parameter values and 0.2 mm / 0.2° noise must give those values bac
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -35,7 +36,10 @@ NOISE_RMSE_MM = math.sqrt(3.0) * NOISE_MM
 @pytest.fixture(scope="module")
 def base() -> ScenarioConfig:
     # Elastic cables (EA/L) whatever the shipped default: the rope modulus is a hidden parameter.
-    return replace_path(ScenarioConfig(), "model.cable_model", "elastic")
+    # Frictionless, so the Jacobian's replays batch on threads (friction replays run one by one;
+    # test_cable_friction_acts_inside_the_batched_replay covers them).
+    config = replace_path(ScenarioConfig(), "model.cable_model", "elastic")
+    return replace_path(config, "model.cable_friction.mu", 0.0)
 
 
 @pytest.fixture(scope="module")
@@ -181,3 +185,38 @@ def test_cli_replay_writes_run_folder(recording: Path, tmp_path: Path, capsys) -
     assert metrics["samples"] > 100
     for name in ("config.toml", "trajectory.npz", "plots/tool_paths.png"):
         assert (tmp_path / "rp" / name).is_file(), name
+
+
+def test_cable_friction_acts_inside_the_batched_replay(base: ScenarioConfig, recording: Path) -> None:
+    """The replay runs in mujoco.rollout; friction (a passive callback) must act there as in mj_step."""
+    import mujoco
+
+    from continuum_sim.configio import get_path
+    from continuum_sim.model.friction import install_cable_friction
+    from continuum_sim.sysid.plant import build_replay_model, control_matrix
+
+    try:
+        get_path(base, "model.cable_friction.mu")
+    except ConfigError:
+        pytest.fail("model.cable_friction.mu is not a config path")
+    rec = read_recording(recording).subset(np.arange(0, 12))
+    rec.info = dataclasses.replace(rec.info, mode="quasi_static", settle_s=0.1)
+    with_mu = replace_path(base, "model.cable_friction.mu", 0.3)
+    plant = build_replay_model(with_mu, rec.arm, rec.info.tool, rec.info.gravity)
+    (replayed,) = simulate([with_mu], rec, plants=[plant])
+    (frictionless,) = simulate([replace_path(base, "model.cable_friction.mu", 0.0)], rec)
+    model = plant.model
+    data = mujoco.MjData(model)
+    handle = install_cable_friction(model, data, with_mu.model.cable_friction)
+    settle = round(0.1 / model.opt.timestep)
+    tips = []
+    for row in control_matrix(with_mu, plant, rec.commands, rec.gripper, rec.spindle):
+        data.ctrl[:] = row
+        for _ in range(settle - 1):
+            mujoco.mj_step(model, data)
+        mujoco.mj_forward(model, data)
+        tips.append(data.sensordata[plant.sensor_pos].copy())
+        mujoco.mj_step(model, data)
+    handle.uninstall()
+    np.testing.assert_allclose(replayed.position, np.array(tips), atol=1e-12)
+    assert np.abs(replayed.position - frictionless.position).max() > 1e-5
