@@ -621,6 +621,8 @@ class CableFriction:
 
     def check(self) -> None:
         """Raise the first error the passive callback met (a C callback cannot raise itself)."""
+        if self.error is not None and not isinstance(self.error, Exception):
+            raise self.error  # an interrupt delivered inside the callback
         if self.error is not None:
             raise RuntimeError(
                 f"cable friction failed in the passive callback: {self.error!r}"
@@ -645,7 +647,9 @@ def _passive_callback(model_ptr: int | None, data_ptr: int | None) -> None:
         return
     try:
         handle.apply(model, data)
-    except Exception as exc:  # noqa: BLE001 - a C callback cannot raise: kept for CableFriction.check()
+    except BaseException as exc:  # noqa: BLE001 - a C callback cannot raise: kept for CableFriction.check()
+        # Ctrl-C/SIGTERM land here too when the signal arrives inside the callback: kept and
+        # re-raised after mj_step (ctypes would print it and drop it; the run then looked diverged).
         if handle.error is None:
             handle.error = exc
 

@@ -44,6 +44,8 @@ class CableFrictionObserver(Observer):
 
     def after_tick(self, sim: Simulation) -> str | None:
         if self.handle is not None and self.handle.error is not None:
+            if not isinstance(self.handle.error, Exception):  # Ctrl-C/SIGTERM delivered inside the C callback
+                raise self.handle.error
             return f"cable friction failed at t = {sim.data.time:.4f} s: {self.handle.error!r}"
         return None
 
