@@ -148,6 +148,25 @@ def run_shared(spec: SweepSpec, variants: Sequence[Variant], workers: int, on_re
 
 
 # --------------------------------------------------------------------------- Ray
+@contextlib.contextmanager
+def _quiet_stderr() -> Iterator[None]:
+    """File descriptor 2 to /dev/null for the duration (C++ logging bypasses ``sys.stderr``)."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):
+        yield
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+
+
 def _resolve(host: str, port: int) -> Any:
     """The first TCP address of ``host:port``, or the ``OSError`` resolving it raised."""
     try:
@@ -223,7 +242,8 @@ def run_ray(
         probe_address(address)  # an unreachable cluster is one line in seconds, not a hang
         init_kwargs["address"] = address
     try:
-        ray.init(**init_kwargs)
+        with _quiet_stderr():  # Ray's C++ client logs a line per connection retry (20 for an address that is not Ray)
+            ray.init(**init_kwargs)
     except ConnectionError as exc:
         raise ConfigError("--address", f"cannot connect to a Ray cluster at {address!r}: {describe(exc)}") from None
     try:
