@@ -103,6 +103,11 @@ def test_format_round_trip_and_motor_columns(recording: Path) -> None:
     np.testing.assert_allclose(motor.commands, 0.5 * rec.commands)
 
 
+def test_shipped_example_reads() -> None:
+    rec = read_recording(Path(__file__).resolve().parents[1] / "docs" / "sysid" / "example_recording.csv")
+    assert rec.quaternion is not None and rec.tensions is not None and rec.measured.all()
+
+
 def test_sparse_rates_interpolate_commands_and_skip_missing_poses() -> None:
     cables = ",".join(f"left/cable_{k}_{c}" for k in range(3) for c in range(3))
     text = (f"time,{cables},left/tool_x,left/tool_y,left/tool_z\n"

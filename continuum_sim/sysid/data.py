@@ -113,6 +113,7 @@ def cable_columns(arm: str, n_sections: int, kind: str = "cable") -> list[str]:
 
 POSE = ("tool_x", "tool_y", "tool_z")
 QUAT = ("tool_qw", "tool_qx", "tool_qy", "tool_qz")
+_META = re.compile(r"^([A-Za-z_]\w*)\s*=(.*)$")  # "# key = value"; any other "#" line is a comment
 _CABLE = re.compile(r"^(left|right)/(cable|motor|tension)_(\d+)_([0-2])$")
 
 
@@ -120,9 +121,10 @@ def _parse_info(lines: list[tuple[int, str]], where: str) -> RecordingInfo:
     values: dict[str, object] = {}
     known = {"format", "mode", "settle_s", "gravity", "tool", "align", "source"}
     for row, text in lines:
-        if "=" not in text:
+        m = _META.match(text)
+        if m is None:  # a comment
             continue
-        key, _, value = (s.strip() for s in text.partition("="))
+        key, value = m.group(1), m.group(2).strip()
         if key not in known:
             raise ConfigError(f"{where}: row {row}", f"unknown metadata key {key!r} (known: {', '.join(sorted(known))})")
         if key == "format":
