@@ -213,8 +213,8 @@ def _add_cameras(root: mjcf.RootElement, layout: TaskLayout) -> None:
     arms_mid = (np.asarray(layout.left.position) + np.asarray(layout.right.position)) / 2
     # Framed on the work: from the pack's top to the tools above the plate, both arms and
     # the plate's corner, seen a little from above so the plate is not edge-on.
-    overview_target = arms_mid + np.array([0.0, 0.04, 0.36])
-    overview_pos = overview_target + np.array([0.33, -0.62, 0.30])
+    overview_target = arms_mid + np.array([0.0, 0.04, 0.34])
+    overview_pos = overview_target + np.array([0.38, -0.74, 0.30])
     root.worldbody.add("camera", name="overview", pos=tuple(overview_pos), xyaxes=look_at(overview_pos, overview_target), fovy=45)
     # From above, in front: the cutter tip breaks through the top face, cells vanish, and
     # the arms (which come from below) do not block the view.
