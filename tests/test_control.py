@@ -7,6 +7,7 @@ from continuum_sim import ArmGeometry, ConfigError, tool_centre_pose
 from continuum_sim.control import ArmController, ControlConfig
 from continuum_sim.glbackend import choose_gl_backend
 from continuum_sim.model.arm import build_single_arm_model
+from continuum_sim.model.motors import cable_stiffness
 from continuum_sim.scenario.config import ScenarioConfig
 
 choose_gl_backend()
@@ -23,7 +24,7 @@ def hold_pose(mode: str, seconds: float = 6.0):
     q = np.radians([30, 0, 40, 180, 50, 90])
     target = tool_centre_pose(geometry, q, "grinder")
     config = ControlConfig(mode=mode)
-    controller = ArmController(geometry, config, np.eye(4), geometry.tools.grinder_length, options.cable_kp)
+    controller = ArmController(geometry, config, np.eye(4), geometry.tools.grinder_length, cable_stiffness(geometry, options))
     every = int(round(1.0 / (config.rate_hz * model.opt.timestep)))
     min_tension = np.inf
     for step in range(int(seconds / model.opt.timestep)):
