@@ -568,10 +568,12 @@ def _check_finite_args(parser: argparse.ArgumentParser, args: argparse.Namespace
         if action.type is not float:
             continue
         value = getattr(args, action.dest, None)
+        name = action.option_strings[0] if action.option_strings else action.metavar or action.dest
+        if action.nargs is None and isinstance(value, list):  # argparse turns `--tol=--` into []
+            raise UsageError(f"{name}: expected one number")
         values = value if isinstance(value, (list, tuple)) else [value]
         for v in values:
             if isinstance(v, float) and not math.isfinite(v):
-                name = action.option_strings[0] if action.option_strings else action.metavar or action.dest
                 raise UsageError(f"{name}: must be a finite number (got {v!r})")
 
 
