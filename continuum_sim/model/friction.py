@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import itertools
 import re
+import sys
 import weakref
 from dataclasses import dataclass
 from typing import Any
@@ -567,7 +568,7 @@ class CableFriction:
         self._views = (data.qpos, data.actuator_force, data.ten_length, data.ten_velocity, data.qfrc_passive)
         self._model_ref = weakref.ref(model)
         self._data_ref = weakref.ref(data)
-        self.error: Exception | None = None
+        self.error: BaseException | None = None
 
     # -------------------------------------------------------------- tensions and forces
     def apply(self, model, data) -> None:
@@ -636,6 +637,26 @@ class CableFriction:
 # a model, which a plain Python callback cannot receive (the bindings raise there).
 _REGISTRY: dict[int, CableFriction] = {}
 _C_CALLBACK: list[Any] = []
+# A signal handler (Ctrl-C, SIGTERM) may run inside the callback's Python code; ctypes would
+# swallow its exception. The unraisable hook keeps it here and raise_pending() re-raises it
+# from ordinary Python code (the run's observer calls it every tick).
+_PENDING: list[BaseException] = []
+_PREVIOUS_UNRAISABLE: list[Any] = []
+
+
+def _unraisable_hook(unraisable: Any) -> None:
+    if unraisable.object is _passive_callback and unraisable.exc_value is not None:
+        _PENDING.append(unraisable.exc_value)
+        return
+    _PREVIOUS_UNRAISABLE[0](unraisable)
+
+
+def raise_pending() -> None:
+    """Re-raise an exception (e.g. a signal handler's) that interrupted the passive callback."""
+    if _PENDING:
+        exc = _PENDING[0]
+        _PENDING.clear()
+        raise exc
 
 
 def _passive_callback(model_ptr: int | None, data_ptr: int | None) -> None:
@@ -660,9 +681,10 @@ def _ensure_callback() -> None:
     import mujoco
 
     if not _C_CALLBACK:
-        _C_CALLBACK.append(
-            ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p)(_passive_callback)
-        )
+        _C_CALLBACK.append(ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p)(_passive_callback))
+    if sys.unraisablehook is not _unraisable_hook:
+        _PREVIOUS_UNRAISABLE[:] = [sys.unraisablehook]
+        sys.unraisablehook = _unraisable_hook
     current = mujoco.get_mjcb_passive()
     if current is _C_CALLBACK[0]:
         return

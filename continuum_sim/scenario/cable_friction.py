@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ..model.friction import CableFriction, CableFrictionConfig, install_cable_friction
+from ..model.friction import CableFriction, CableFrictionConfig, install_cable_friction, raise_pending
 from .simulate import Observer, Simulation
 
 
@@ -43,6 +43,7 @@ class CableFrictionObserver(Observer):
             self.rows[arm].append(ratio[cols])
 
     def after_tick(self, sim: Simulation) -> str | None:
+        raise_pending()  # a Ctrl-C/SIGTERM that landed inside the passive callback
         if self.handle is not None and self.handle.error is not None:
             if not isinstance(self.handle.error, Exception):  # Ctrl-C/SIGTERM delivered inside the C callback
                 raise self.handle.error
