@@ -41,6 +41,11 @@ from continuum_sim.model.arm import build_single_arm_model
 from continuum_sim.model.options import ModelOptions, model_geometry
 from continuum_sim.model.state import set_arm_configuration
 from continuum_sim.scenario.config import ScenarioConfig
+from continuum_sim.validation.capstan import anchor_tension as _anchor_tension
+from continuum_sim.validation.capstan import hold as _hold
+from continuum_sim.validation.capstan import rig, tension_for_bend
+from continuum_sim.validation.capstan import settle as _settle
+from continuum_sim.validation.capstan import wrap_angle as _wrap
 
 POSES = {"left": np.radians([30, 180, 25, 150, 20, 210]), "right": np.radians([30, 0, 25, 30, 20, 330])}
 PRETENSION = 10.0  # N
@@ -126,40 +131,7 @@ def compile_cost() -> dict:
 
 
 # ------------------------------------------------------------------------- section rig
-def rig() -> tuple[mujoco.MjModel, int, int]:
-    """The scenario's arm (hinge pairs, 4 ms), no gravity; cable_0_0 driven by a pure tension source."""
-    root = build_single_arm_model(ArmGeometry.default(), ModelOptions(joint="hinge_pair", timestep=0.004), gravity=False)
-    model = mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
-    act = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, CABLE)
-    ten = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, CABLE)
-    model.actuator_gainprm[act, :] = 0.0
-    model.actuator_gainprm[act, 0] = 1.0
-    model.actuator_biasprm[act, :] = 0.0
-    model.actuator_ctrlrange[act] = (-1000.0, 0.0)
-    model.actuator_forcerange[act] = (-1000.0, 0.0)
-    return model, act, ten
 
-
-def tension_for_bend(model, ten: int, bend: float) -> float:
-    """Frictionless statics estimate of the motor tension bending the section by ``bend`` (rad).
-
-    Each of the n joints turns bend/n against its flexure spring k, the cable on the hole
-    radius r: T ≈ k·(bend/n)/r. A starting point only; the results are measured.
-    """
-    adr, num = model.tendon_adr[ten], model.tendon_num[ten]
-    first_disk = model.site_bodyid[model.wrap_objid[adr + 1]]
-    j = model.body_jntadr[first_disk]
-    k = float(np.max(model.jnt_stiffness[j : j + model.body_jntnum[first_disk]]))
-    r = float(np.linalg.norm(model.site_pos[model.wrap_objid[adr]][:2]))
-    return k * (bend / (num - 1)) / r
-
-
-def _settle(model, data, act: int, T: float, max_steps: int = 5000) -> None:
-    """Hold the motor tension until the arm is at rest (|qvel| < 1e-4 rad/s)."""
-    for _ in range(max_steps // 250):
-        _hold(model, data, act, T, T, 0, 250)
-        if np.abs(data.qvel).max() < 1e-4:
-            return
 
 
 def _bend(model, data, ten: int) -> float:
@@ -168,22 +140,6 @@ def _bend(model, data, ten: int) -> float:
     return float(np.degrees(np.arccos(np.clip(data.xmat[body].reshape(3, 3)[2, 2], -1.0, 1.0))))
 
 
-def _anchor_tension(model, data, ten: int) -> float:
-    adr, num = model.tendon_adr[ten], model.tendon_num[ten]
-    body = model.site_bodyid[model.wrap_objid[adr + num - 1]]
-    first = model.jnt_dofadr[model.body_jntadr[body]]
-    dofs = np.arange(first, first + model.body_jntnum[body])
-    J = np.zeros((model.ntendon, model.nv))
-    mujoco.mju_sparse2dense(J, data.ten_J, model.ten_J_rownnz, model.ten_J_rowadr, model.ten_J_colind)
-    g = J[ten, dofs]
-    return float(data.qfrc_spring[dofs] @ g / (g @ g))
-
-
-def _wrap(model, data, ten: int) -> float:
-    adr, num = model.tendon_adr[ten], model.tendon_num[ten]
-    p = data.site_xpos[model.wrap_objid[adr : adr + num]]
-    last = (p[-1] - p[-2]) / np.linalg.norm(p[-1] - p[-2])
-    return float(np.arccos(last[2]))
 
 
 def _fresh(model, mu: float):
@@ -191,11 +147,6 @@ def _fresh(model, mu: float):
     data.ctrl[:] = model.actuator_ctrlrange[:, 1]
     return data, fr.install_cable_friction(model, data, fr.CableFrictionConfig(mu=mu))
 
-
-def _hold(model, data, act: int, start: float, end: float, ramp: int, hold: int) -> None:
-    for T in np.r_[np.linspace(start, end, ramp), np.full(hold, end)]:
-        data.ctrl[act] = -T
-        mujoco.mj_step(model, data)
 
 
 def capstan() -> list[dict]:
