@@ -705,6 +705,20 @@ def _unregister(key: int) -> None:
             mujoco.set_mjcb_passive(None)
 
 
+def _compile_outside_the_callback(model, data, config: CableFrictionConfig, tendon_ids: np.ndarray | None) -> None:
+    """Run the kernels once on a scratch copy of ``data`` so numba compiles (or loads its cache) here.
+
+    Compiling inside the ctypes passive callback takes seconds on a cold cache, and a Ctrl-C
+    landing there was lost (a fresh clone's first interrupted run completed with exit 0).
+    The scratch copy keeps the real data's stick/slip state untouched.
+    """
+    import mujoco
+
+    scratch = mujoco.MjData(model)
+    mujoco.mj_copyData(scratch, model, data)
+    CableFriction(model, scratch, config, tendon_ids).apply(model, scratch)
+
+
 def install_cable_friction(
     model, data, config: CableFrictionConfig, tendon_ids: np.ndarray | None = None
 ) -> CableFriction:
@@ -716,6 +730,7 @@ def install_cable_friction(
     """
     handle = CableFriction(model, data, config, tendon_ids)
     if handle.active:
+        _compile_outside_the_callback(model, data, config, tendon_ids)
         _ensure_callback()
         key = data._address
         _REGISTRY[key] = handle

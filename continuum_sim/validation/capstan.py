@@ -16,11 +16,9 @@ from typing import Any
 
 import numpy as np
 
-RIG_CABLE = "cable_0_0"  # the proximal section's first cable
-
 
 def rig() -> tuple[Any, int, int]:
-    """(model, actuator, tendon): the arm with ``RIG_CABLE`` driven by a pure tension source."""
+    """(model, actuator, tendon): the arm with its proximal cable 0 driven by a pure tension source."""
     import mujoco
 
     from ..geometry import ArmGeometry
@@ -30,7 +28,7 @@ def rig() -> tuple[Any, int, int]:
 
     root = build_single_arm_model(ArmGeometry.default(), ModelOptions(joint="hinge_pair", timestep=0.004), gravity=False)
     model = mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
-    cable = names.scoped(names.SINGLE_ARM, RIG_CABLE)
+    cable = names.scoped(names.SINGLE_ARM, names.cable(0, 0))  # the proximal section's first cable
     act = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, cable)
     ten = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, cable)
     model.actuator_gainprm[act, :] = 0.0
