@@ -712,11 +712,27 @@ def _compile_outside_the_callback(model, data, config: CableFrictionConfig, tend
     landing there was lost (a fresh clone's first interrupted run completed with exit 0).
     The scratch copy keeps the real data's stick/slip state untouched.
     """
+    import signal
+    import threading
+
     import mujoco
 
-    scratch = mujoco.MjData(model)
-    mujoco.mj_copyData(scratch, model, data)
-    CableFriction(model, scratch, config, tendon_ids).apply(model, scratch)
+    # llvmlite's own ctypes callbacks swallow a KeyboardInterrupt raised inside them (seen:
+    # a cold-cache compile ran on after Ctrl-C), so while compiling, Ctrl-C only records
+    # itself and is raised once the compile is done.
+    interrupted: list[int] = []
+    restore = None
+    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        restore = signal.signal(signal.SIGINT, lambda signum, _frame: interrupted.append(signum))
+    try:
+        scratch = mujoco.MjData(model)
+        mujoco.mj_copyData(scratch, model, data)
+        CableFriction(model, scratch, config, tendon_ids).apply(model, scratch)
+    finally:
+        if restore is not None:
+            signal.signal(signal.SIGINT, restore)
+    if interrupted:
+        raise KeyboardInterrupt
 
 
 def install_cable_friction(
