@@ -27,6 +27,13 @@ def _env() -> dict[str, str]:
     return env
 
 
+def _as_from_a_terminal() -> None:
+    """Child setup: SIGINT at its default, as in a terminal. A shell runs background jobs
+    (``cmd &``) with SIGINT ignored and children inherit that, so a test suite started that
+    way would otherwise test a process that is told to ignore Ctrl-C."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _one_line(err: str) -> str:
     lines = [line for line in err.splitlines() if line.strip()]
     assert len(lines) == 1 and "Traceback" not in err, err
@@ -57,7 +64,8 @@ def test_interrupted_run_is_one_line_and_marked(tmp_path, sig, code, video):
     out = tmp_path / "run"
     argv = [*CLI, "run", "--quiet", "--out", str(out), *(["--video"] if video else [])]
     # A process group of its own: Ctrl-C in a terminal reaches every process of the group (render workers too).
-    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(), process_group=0)
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(), process_group=0,
+                            preexec_fn=_as_from_a_terminal)
     _wait_for(out / "config.toml", proc)  # past planning: the model is built and the run folder is being filled
     assert read_state(out) == "running"
     time.sleep(2.0)  # video: the render workers are up
@@ -170,7 +178,7 @@ def test_stopped_sweep_driver_leaves_no_workers(tmp_path, how):
     spec.write_text('[grid]\n"model.stiffness_scale" = [1.0, 1.1, 1.2, 1.3]\n[evaluation]\nkind = "gravity_sag"\nsettle_s = 100.0\n')
     driver = subprocess.Popen([*CLI, "sweep", str(spec), "--out", str(tmp_path / "out"), "--workers", "2", "--batch", "off",
                                "--quiet"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=_env(),
-                              process_group=0)
+                              process_group=0, preexec_fn=_as_from_a_terminal)
     end = time.monotonic() + 120
     workers: set[int] = set()
     while len(workers) < 4 and time.monotonic() < end:  # resource tracker, forkserver, two workers
