@@ -20,6 +20,7 @@ from continuum_sim.geometry import ArmGeometry
 from continuum_sim.model import friction as fr
 from continuum_sim.model.arm import build_single_arm_model
 from continuum_sim.model.options import ModelOptions
+from continuum_sim.validation import capstan
 
 CABLE = "arm/cable_0_0"  # proximal section, hole at 0°: pulling it bends the section toward +x
 
@@ -34,31 +35,10 @@ def _compile(options: ModelOptions) -> mujoco.MjModel:
 
 @pytest.fixture(scope="module")
 def rig() -> tuple[mujoco.MjModel, int, int]:
-    """The scenario's arm (hinge pairs, 4 ms), no gravity; cable_0_0 driven by a pure force motor."""
-    model = _compile(ModelOptions(joint="hinge_pair", timestep=0.004))
-    act = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, CABLE)
-    ten = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, CABLE)
-    # force = ctrl (a tension source at the motor): the rig applies a known motor tension.
-    model.actuator_gainprm[act, :] = 0.0
-    model.actuator_gainprm[act, 0] = 1.0
-    model.actuator_biasprm[act, :] = 0.0
-    model.actuator_ctrlrange[act] = (-1000.0, 0.0)
-    model.actuator_forcerange[act] = (-1000.0, 0.0)
-    return model, act, ten
+    """The scenario's arm (hinge pairs, 4 ms), no gravity; cable_0_0 driven by a pure force motor
+    (the capstan check's own rig, continuum_sim.validation.capstan)."""
+    return capstan.rig()
 
-
-def _tension_for_bend(model, ten: int, bend: float) -> float:
-    """Frictionless statics estimate of the motor tension bending the section by ``bend``.
-
-    Each of the n joints turns bend/n against its flexure spring k with the cable on the
-    hole radius r: T ≈ k·(bend/n)/r. Only a starting point (the tests measure the result).
-    """
-    adr, num = model.tendon_adr[ten], model.tendon_num[ten]
-    first_disk = model.site_bodyid[model.wrap_objid[adr + 1]]
-    j = model.body_jntadr[first_disk]
-    k = float(np.max(model.jnt_stiffness[j : j + model.body_jntnum[first_disk]]))
-    r = float(np.linalg.norm(model.site_pos[model.wrap_objid[adr]][:2]))
-    return k * (bend / (num - 1)) / r
 
 
 def _slack(model: mujoco.MjModel, data: mujoco.MjData) -> None:
@@ -98,25 +78,7 @@ def _section_bend(model, data, ten: int) -> float:
     return float(np.arccos(np.clip(data.xmat[body].reshape(3, 3)[2, 2], -1.0, 1.0)))
 
 
-def _anchor_tension(model, data, ten: int) -> float:
-    """Tension at the anchor from statics: spring torque at the last joint / MuJoCo's moment arm.
 
-    Only the last piece of the cable spans the last segment, so at equilibrium its joint
-    springs balance T_anchor·∂l/∂q there (MuJoCo's ten_J row restricted to those dofs).
-    """
-    adr, num = model.tendon_adr[ten], model.tendon_num[ten]
-    body = model.site_bodyid[model.wrap_objid[adr + num - 1]]
-    first = model.jnt_dofadr[model.body_jntadr[body]]
-    dofs = np.arange(first, first + model.body_jntnum[body])
-    J = np.zeros((model.ntendon, model.nv))
-    mujoco.mju_sparse2dense(
-        J, data.ten_J, model.ten_J_rownnz, model.ten_J_rowadr, model.ten_J_colind
-    )
-    g = J[ten, dofs]
-    return float(data.qfrc_spring[dofs] @ g / (g @ g))
-
-
-# ------------------------------------------------------------------------------ config
 def test_config_validates_itself() -> None:
     with pytest.raises(ConfigError, match="^mu: "):
         fr.CableFrictionConfig(mu=-0.1)
@@ -165,7 +127,7 @@ def test_capstan_over_90_degrees(rig, mu: float) -> None:
     """Section held bent ~90° by a motor tension: T_anchor/T_motor = e^(−μθ) within 5 %."""
     model, act, ten = rig
     target_wrap = np.pi / 2
-    T = _tension_for_bend(
+    T = capstan.tension_for_bend(
         model, ten, target_wrap
     )  # then scaled by the measured wrap until ~90°
     for _attempt in range(4):
@@ -186,7 +148,7 @@ def test_capstan_over_90_degrees(rig, mu: float) -> None:
         T *= target_wrap / wrap
     assert abs(np.degrees(wrap) - 90.0) < 2.0
     assert np.abs(data.qvel).max() < 1e-3  # static
-    ratio = _anchor_tension(model, data, ten) / T
+    ratio = capstan.anchor_tension(model, data, ten) / T
     expected = np.exp(-mu * wrap)
     assert ratio == pytest.approx(expected, rel=0.05)
     assert ratio == pytest.approx(np.exp(-mu * np.pi / 2), rel=0.05)
@@ -203,11 +165,11 @@ def test_frictionless_anchor_carries_the_motor_tension(rig) -> None:
     _slack(model, data)
     handle = fr.install_cable_friction(model, data, fr.CableFrictionConfig(mu=0.0))
     assert not handle.active
-    T = _tension_for_bend(model, ten, np.pi / 2)
+    T = capstan.tension_for_bend(model, ten, np.pi / 2)
     _drive(model, data, act, np.linspace(0.0, T, 250), ten)
     _settle(model, data, act, T, ten)
     mujoco.mj_forward(model, data)
-    assert _anchor_tension(model, data, ten) / T == pytest.approx(1.0, abs=2e-3)
+    assert capstan.anchor_tension(model, data, ten) / T == pytest.approx(1.0, abs=2e-3)
 
 
 # --------------------------------------------------------------------------- hysteresis
@@ -216,7 +178,7 @@ def _loop(model, act, ten, mu: float) -> tuple[float, float]:
     data = mujoco.MjData(model)
     _slack(model, data)
     handle = fr.install_cable_friction(model, data, fr.CableFrictionConfig(mu=mu))
-    top = _tension_for_bend(model, ten, np.radians(80.0))
+    top = capstan.tension_for_bend(model, ten, np.radians(80.0))
     mid = 0.55 * top
     _drive(model, data, act, np.linspace(0.0, mid, 250), ten)
     _settle(model, data, act, mid, ten)

@@ -15,7 +15,7 @@ from continuum_sim.configio import ConfigError, from_dict, load_toml, parse_toml
 from continuum_sim.geometry import ArmGeometry
 from continuum_sim.scenario.config import ScenarioConfig
 from continuum_sim.sweep.evaluations import KINDS
-from continuum_sim.sweep.spec import MAX_VARIANTS, SweepSpec, parse_spec
+from continuum_sim.sweep.spec import MAX_VARIANTS, SweepSpec, _set_path, parse_spec
 
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 BASE = ScenarioConfig()
@@ -47,17 +47,6 @@ values = st.recursive(scalars, lambda inner: st.lists(inner, max_size=4) | st.di
                       max_leaves=8)
 
 
-def _set(data, path: str, value) -> None:
-    parts = path.split(".")
-    node = data
-    for part in parts[:-1]:
-        node = node[int(part)] if isinstance(node, list) else node[part]
-    last = parts[-1]
-    if isinstance(node, list):
-        node[int(last)] = value
-    else:
-        node[last] = value
-
 
 @SETTINGS
 @given(st.lists(st.tuples(st.sampled_from(PATHS), values), min_size=1, max_size=3))
@@ -65,7 +54,7 @@ def test_scenario_loader_valid_or_config_error(edits):
     data = copy.deepcopy(BASE_DICT)
     for path, value in edits:
         try:
-            _set(data, path, value)
+            _set_path(data, path, value)
         except (KeyError, IndexError, ValueError, TypeError):  # an earlier edit replaced a parent of this path
             continue
     try:
