@@ -23,9 +23,9 @@ from continuum_sim.model.stiffness import (
 )
 from continuum_sim.validation.fe_segment import (
     LeafSection,
-    SegmentFE,
     cantilever_chain,
     rectangle_torsion_constant,
+    section_fe_stiffness,
 )
 
 GEOMETRY = ArmGeometry()
@@ -81,21 +81,7 @@ def test_rectangle_torsion_constant_matches_the_textbook_table(ratio, beta):
 
 # ------------------------------------------------------------------ analytic vs FE
 def _fe_for(geometry: ArmGeometry, index: int) -> np.ndarray:
-    section = geometry.sections[index]
-    leaf = LeafSection(
-        section.hinge_width,
-        section.hinge_thickness,
-        geometry.material.youngs_modulus,
-        geometry.material.poisson_ratio,
-    )
-    return SegmentFE(
-        leaf,
-        free_length=section.leaf_length(geometry.disk_thickness),
-        leaf_radius=section.leaf_radius,
-        leaf_angles_deg=section.leaf_angles_deg,
-        joint=geometry.central_joint,
-    ).stiffness()
-
+    return section_fe_stiffness(geometry, geometry.sections[index])
 
 def _with_leaves(
     radius: float | None, angles=(0.0, 120.0, 240.0), joint: str = "ball"

@@ -17,11 +17,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 
 from ..configio import require_int, require_positive, require_range
+
+if TYPE_CHECKING:
+    from ..geometry import ArmGeometry, SectionGeometry
 
 
 @dataclass(frozen=True)
@@ -238,6 +242,19 @@ class SegmentFE:
         compliance = cho_solve(factor, loads)[6 * len(interior) :, :]
         return np.linalg.inv(compliance)
 
+
+
+def section_fe_stiffness(geometry: ArmGeometry, section: SectionGeometry) -> np.ndarray:
+    """The FE stiffness matrix of one physical segment of ``section``, built from its leaf fields
+    (width, thickness, free length, radius, angles), the material and the central joint only."""
+    leaf = LeafSection(section.hinge_width, section.hinge_thickness, geometry.material.youngs_modulus, geometry.material.poisson_ratio)
+    return SegmentFE(
+        leaf,
+        free_length=section.leaf_length(geometry.disk_thickness),
+        leaf_radius=section.leaf_radius,
+        leaf_angles_deg=section.leaf_angles_deg,
+        joint=geometry.central_joint,
+    ).stiffness()
 
 def cantilever_chain(
     length: float, section: LeafSection, n_elements: int, tip_load: np.ndarray

@@ -297,21 +297,14 @@ def _beam_section(quick: bool) -> list[Row]:
 def _fe_segment(quick: bool) -> list[Row]:
     """The segment stiffness formula (model.stiffness) against the leaf FE model (fe_segment)."""
     from ..model.stiffness import segment_stiffness
-    from .fe_segment import LeafSection, SegmentFE
+    from .fe_segment import section_fe_stiffness
 
     arm, _ = _arm_and_options()
     rows = []
     for k, sec in enumerate(arm.sections):
         if arm.backbone != "flexure":
             break
-        leaf = LeafSection(sec.hinge_width, sec.hinge_thickness, arm.material.youngs_modulus, arm.material.poisson_ratio)
-        fe = SegmentFE(
-            leaf,
-            free_length=sec.leaf_length(arm.disk_thickness),
-            leaf_radius=sec.leaf_radius,
-            leaf_angles_deg=sec.leaf_angles_deg,
-            joint=arm.central_joint,
-        ).stiffness()
+        fe = section_fe_stiffness(arm, sec)
         kx, _, kz = segment_stiffness(arm, sec)
         ref = f"leaf frame-element FE (fe_segment), section {k}"
         rows.append(row("fe.segment", ref, "bending stiffness error", 100 * (kx / fe[0, 0] - 1), 10.0, "%", "+.2f"))
