@@ -43,7 +43,8 @@ from continuum_sim.configio import replace_path  # noqa: E402
 from continuum_sim.scenario.config import ScenarioConfig  # noqa: E402
 from continuum_sim.scenario.metrics import WALL_CLOCK_METRICS  # noqa: E402
 from continuum_sim.scenario.runner import build_scene_model, run_scenario  # noqa: E402
-from continuum_sim.video import VIDEO_SLICES, VideoRecorder  # noqa: E402
+from continuum_sim.video import VideoRecorder  # noqa: E402
+from continuum_sim.video import _prepare_model as prepare_video_model  # noqa: E402
 
 GOAL_CPU_REAL_TIME_FACTOR = 12.0
 FLOOR_CPU_REAL_TIME_FACTOR = 10.0
@@ -92,17 +93,13 @@ def video_comparison(config: ScenarioConfig, frames: int) -> dict[str, Any]:
     mujoco.mj_forward(model, data)
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
-        with VideoRecorder(model, Path(tmp) / "v.mp4", sim.cameras, sim.video_width, sim.video_height, sim.video_fps) as video:
+        with VideoRecorder(model, Path(tmp) / "v.mp4", sim.cameras, sim.video_width, sim.video_height, sim.video_fps, sim.video_shadows) as video:
             for _ in range(frames):
                 video.next_time = data.time
                 video.maybe_capture(data)
         recorder_wall = time.perf_counter() - start  # includes worker start-up and the final join
         workers = video.workers
-    model.light_castshadow[:] = 0
-    model.vis.quality.offsamples = 0
-    model.vis.quality.numslices, model.vis.quality.numstacks = VIDEO_SLICES["fast"]
-    model.vis.global_.offwidth = max(model.vis.global_.offwidth, sim.video_width)
-    model.vis.global_.offheight = max(model.vis.global_.offheight, sim.video_height)
+    prepare_video_model(model, sim.video_width, sim.video_height, sim.video_shadows, "fast")  # as the recorder's workers do
     with mujoco.Renderer(model, sim.video_height, sim.video_width) as renderer:
         start = time.perf_counter()
         for _ in range(frames):

@@ -25,7 +25,7 @@ import subprocess
 import sys
 import tempfile
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from multiprocessing import get_context
@@ -178,8 +178,8 @@ class VideoRecorder:
     """Capture frames at ``fps`` of simulated time from named cameras, tiled horizontally.
 
     ``workers`` render processes (default: the machine's cores; 0 renders in this process,
-    frame by frame, inside ``maybe_capture``). ``decorate`` is not needed for MuJoCo geoms:
-    colour changes the run makes to ``model.geom_rgba`` are captured with each frame.
+    frame by frame, inside ``maybe_capture``). Colour changes the run makes to
+    ``model.geom_rgba`` (e.g. removed material) are captured with each frame.
     """
 
     def __init__(
@@ -223,7 +223,6 @@ class VideoRecorder:
         self._renderer: _FrameRenderer | None = None
         self._writer: Any = None
         if self.workers <= 0:
-            self._render_model = model
             _prepare_model(model, width, height, shadows, quality)
             self._renderer = _FrameRenderer(model, self.cameras, width, height)
             self._writer = _open_writer(self._tmp, fps)
@@ -339,15 +338,3 @@ class VideoRecorder:
         # A run that stopped early still keeps what was rendered (SPEC: keep what was computed).
         self.close(keep=True)
 
-
-def render_states(
-    model: Any, states: Sequence[FrameState], cameras: Sequence[str], width: int, height: int,
-    callback: Callable[[np.ndarray], None],
-) -> None:
-    """Render ``states`` in this process and hand each frame to ``callback`` (benchmarks, tests)."""
-    renderer = _FrameRenderer(model, cameras, width, height)
-    try:
-        for state in states:
-            callback(renderer.render_state(state))
-    finally:
-        renderer.close()
