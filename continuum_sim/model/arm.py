@@ -21,7 +21,7 @@ from ..configio import ConfigError
 from ..geometry import ArmGeometry
 from ..kinematics import straight_cable_lengths
 from .backbone import LinkSpec, build_backbone
-from .motors import cable_stiffness
+from .motors import cable_stiffness, cable_velocity_gain
 from .options import ModelOptions, model_geometry
 from .stiffness import joint_stiffnesses
 
@@ -151,7 +151,7 @@ def build_arm(geometry: ArmGeometry, options: ModelOptions, name: str, tool: str
                 name=cable,
                 tendon=cable,
                 kp=float(stiffness[c]),
-                kv=options.cable_kv,
+                kv=cable_velocity_gain(float(stiffness[c]), options),
                 forcelimited=True,
                 forcerange=(-options.cable_max_force, 0.0),
                 ctrllimited=True,

@@ -72,6 +72,24 @@ def cable_stiffness(geometry: ArmGeometry, options: ModelOptions, in_arm: Array 
     return rope_axial_stiffness(options) / routed_lengths(geometry, options, in_arm)
 
 
+def implicit_spring_step(options: ModelOptions) -> float:
+    """h (s) of the cable spring's backward-Euler velocity term k·h, or 0 when it is off."""
+    return float(options.timestep) if options.cable_implicit_spring else 0.0
+
+
+def cable_velocity_gain(stiffness: float, options: ModelOptions) -> float:
+    """The cable actuator's velocity gain (N·s/m) while taut: the motor loop's cable_kv plus k·h.
+
+    Backward Euler on the spring, T_{n+1} = k·(x − l_{n+1}) ≈ k·(x − l_n) − k·h·l̇_{n+1}: the
+    term −k·h·l̇ is an actuator velocity bias, which MuJoCo's implicitfast integrator treats
+    implicitly. It is the integrator's numerical damping of the stiff spring (it vanishes as
+    h → 0), not a physical damper; without it the explicit spring k·h² exceeds what the
+    distal disks' mass and the cable's damping can carry once a grasp pins the tip, and the
+    4 ms step rings at ~25 Hz (docs/plant.md, "Tension chatter").
+    """
+    return float(options.cable_kv) + float(stiffness) * implicit_spring_step(options)
+
+
 def pretension_offsets(geometry: ArmGeometry, options: ModelOptions, pretension: float) -> Array:
     """(n_cables,) motor set-point offsets (m) that give ``pretension`` at the planned shape: T/k."""
     return float(pretension) / cable_stiffness(geometry, options)
@@ -104,6 +122,10 @@ class MotorBank:
     elastic model — the stiffness is re-evaluated every tick from the current routed
     length (lead + tendon length); None keeps the model's own (lumped) gain.
     ``ideal``: the lumped legacy model — the set-point goes to the actuator unchanged.
+    ``velocity_gain`` (N·s/m, the motor loop's cable_kv) and ``implicit_step`` (s, h of the
+    spring's backward-Euler term, ``cable_velocity_gain``): the actuators' velocity gain is
+    set every tick to velocity_gain + k·h on taut cables and velocity_gain on slack ones
+    (a slack cable carries no spring, so no spring term either).
     """
 
     def __init__(
@@ -115,6 +137,8 @@ class MotorBank:
         stiffness_ea: Array | None = None,
         lead: Array | None = None,
         ideal: bool = False,
+        velocity_gain: float = 0.0,
+        implicit_step: float = 0.0,
     ) -> None:
         self.model = model
         self.actuators = np.asarray(actuators, dtype=int)
@@ -124,6 +148,8 @@ class MotorBank:
         self.ea = None if stiffness_ea is None else np.broadcast_to(np.asarray(stiffness_ea, float), (n,)).copy()
         self.lead = None if lead is None else np.broadcast_to(np.asarray(lead, float), (n,)).copy()
         self.ideal = bool(ideal)
+        self.velocity_gain = float(velocity_gain)
+        self.implicit_step = float(implicit_step)
         self.position = np.zeros(n)  # motor positions along the cable (m)
         self.integral = np.zeros(n)  # ∫ error dt (m·s)
         self.set_point = np.zeros(n)
@@ -154,6 +180,8 @@ class MotorBank:
         k = self.stiffness(data)
         self.model.actuator_gainprm[self.actuators, 0] = k
         self.model.actuator_biasprm[self.actuators, 1] = -k
+        taut = data.ten_length[self.tendons] > self.position
+        self.model.actuator_biasprm[self.actuators, 2] = -(self.velocity_gain + np.where(taut, k * self.implicit_step, 0.0))
 
     def command(self, data, set_points: Array, dt: float) -> None:
         """Advance every motor by one tick of ``dt`` toward ``set_points`` and write the actuators' controls."""
@@ -165,9 +193,10 @@ class MotorBank:
                 data.ctrl[self.actuators] = self.position
                 return
         if self.ideal:
+            # The set-point is the motor position; its rate leads it by h (see below).
+            data.ctrl[self.actuators] = s + self.implicit_step * (s - self.set_point) / dt
             self.set_point = s.copy()
             self.position = s.copy()
-            data.ctrl[self.actuators] = s
             return
         self._update_stiffness(data)
         r = self.ratings
@@ -193,17 +222,22 @@ class MotorBank:
         self.position = x_new
         self.integral = integral
         self.set_point = s.copy()
-        data.ctrl[self.actuators] = x_mean
+        # Backward Euler on the spring uses the motor's position at the end of the step,
+        # x + h·ẋ: with the velocity term −k·h·l̇ the implicit part acts on the stretch rate
+        # ẋ − l̇ only, so a cable that follows its motor is not dragged.
+        data.ctrl[self.actuators] = x_mean + self.implicit_step * (x_new - x) / dt
 
 
 def arm_motor_bank(model, actuators: Array, tendons: Array, options: ModelOptions) -> MotorBank:
     """The motors of one arm's cables, as configured (elastic or lumped)."""
     n = len(actuators)
     if options.cable_model == "lumped":
-        return MotorBank(model, actuators, tendons, arm_motor_ratings(options), ideal=True)
+        return MotorBank(model, actuators, tendons, arm_motor_ratings(options), ideal=True,
+                         implicit_step=implicit_spring_step(options))
     ea = np.full(n, rope_axial_stiffness(options))
     lead = np.full(n, options.cable_lead_length)
-    return MotorBank(model, actuators, tendons, arm_motor_ratings(options), stiffness_ea=ea, lead=lead)
+    return MotorBank(model, actuators, tendons, arm_motor_ratings(options), stiffness_ea=ea, lead=lead,
+                     velocity_gain=options.cable_kv, implicit_step=implicit_spring_step(options))
 
 
 class MotorDrive:

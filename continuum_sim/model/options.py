@@ -42,7 +42,11 @@ class ModelOptions:
     motor_kp: float = 40.0  # 1/s, encoder position loop: proportional gain (velocity command per metre of error)
     motor_ki: float = 400.0  # 1/s², encoder position loop: integral gain (removes the load droop)
     cable_kp: float = 3.0e4  # N/m, lumped model only: motor position-loop gain expressed at the cable
-    cable_kv: float = 0.0  # N·s/m, velocity gain of the motor loop at the cable (explicit, tension-only)
+    cable_kv: float = 0.0  # N·s/m, velocity gain of the motor loop at the cable (tension-only; implicit under implicitfast)
+    # The cable spring integrated linearly implicitly (backward Euler): taut cables get the
+    # velocity term k·timestep that implicitfast treats implicitly. Without it the stiff EA/L
+    # spring is unstable at the 4 ms step once a grasp pins the tip (docs/plant.md, "Tension chatter").
+    cable_implicit_spring: bool = True
     cable_damping: float = 200.0  # N·s/m, viscous damping along each cable (motor loop + guides; passive, implicit)
     grinder_mass: float = 0.08  # kg; the spindle motor sits in the pack (flexible shaft)
     gripper_mass: float = 0.06  # kg
