@@ -37,6 +37,11 @@ from continuum_sim.toolpath import plan_task  # noqa: E402
 
 VARIANTS: dict[str, dict[str, Any]] = {
     "default": {},
+    "dt2ms": {"model.timestep": 0.002},
+    "mu0": {"model.cable_friction.mu": 0.0},
+    "presliding0.2mm": {"model.cable_friction.presliding": 0.0002},
+    "pad_friction0.5": {"scene.tools.pad_friction": 0.5},
+    "motor_kp10": {"model.motor_kp": 10.0, "model.motor_ki": 25.0},
     "explicit": {"model.cable_implicit_spring": False},
     "explicit_mu0": {"model.cable_implicit_spring": False, "model.cable_friction.mu": 0.0},
     "explicit_tick250": {"model.cable_implicit_spring": False, "control.rate_hz": 250.0},
@@ -67,7 +72,8 @@ class _PerStep(Observer):
 
 
 def record(overrides: dict[str, Any], until: float) -> tuple[np.ndarray, list[str], float, float]:
-    """Per-step rows of the default task with ``overrides``, up to ``until`` s; arms, step rate, CPU s."""
+    """Per-step rows of the default task with ``overrides``, up to ``until`` s (at most the plan's
+    end); arms, step rate, CPU s."""
     config = ScenarioConfig.default()
     for path, value in overrides.items():
         config = replace_path(config, path, value)
@@ -77,6 +83,7 @@ def record(overrides: dict[str, Any], until: float) -> tuple[np.ndarray, list[st
     sim = make_simulation(config, plan, model, load_controller(controller_spec(config)))
     steps = _PerStep(until)
     hooks = [CutterObserver(sim), CableFrictionObserver(config.model.cable_friction, 1), steps, HealthCheck()]
+    until = min(until, float(plan.t[-1]))  # the whole task at most
     simulate(sim, int(np.ceil(until / sim.control_period)) + 1, hooks)
     return np.array(steps.rows), list(sim.handles.arms), 1.0 / sim.timestep, time.process_time() - start
 
@@ -104,7 +111,7 @@ def hold_report(variants: list[str], until: float) -> None:
 
 
 def task_report(variant: str) -> None:
-    rows, arms, rate, cpu = record(VARIANTS[variant], 1e9)
+    rows, arms, rate, cpu = record(VARIANTS[variant], np.inf)
     n = (rows.shape[1] - 4) // len(arms)
     high = high_pass(rows[:, 4:], rate)
     t = rows[:, 0]

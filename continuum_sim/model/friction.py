@@ -49,14 +49,17 @@ from ..configio import require_range
 # at μ ≈ 0.05–0.25 in engineering friction tables; 0.15 is the middle of the 0.1–0.2 range
 # the issue names for steel rope in polymer or PTFE-lined holes. Not measured on the robot.
 DEFAULT_MU = 0.15
-# Stick band: 0.2 mm of sliding builds friction from zero to full after a reversal. A
+# Stick band: 1 mm of sliding builds friction from zero to full after a reversal. A
 # numerical regularisation of ideal stick (a steel rope's own stretch over one 15–21 mm
-# piece at a ~1 N friction step is ~1 µm). Chosen on the default task (docs/friction.md):
-# the presliding stiffness μβT/δ enters the explicit passive force and slows MuJoCo's
-# constraint solver (mean iterations per step 1.52 frictionless, 3.26 at 0.05 mm, 1.97 at
-# 0.2 mm, 1.79 at 1 mm) while the capstan and the hysteresis do not change (capstan error
-# < 0.1 % at 0.05 and 0.2 mm); 0.2 mm is < 1 % of a section's 24 mm cable stroke.
-DEFAULT_PRESLIDING = 2.0e-4
+# piece at a ~1 N friction step is ~1 µm). The presliding stiffness μβT/δ enters the
+# explicit passive force, so δ must keep it inside the 4 ms step's stability limit: with
+# the gripper holding the welded sample (the jaws reaching the grasp since the preloaded
+# jaw springs) δ = 0.2 mm rang the gripper arm's cables at 18 Hz, 9 N peak-to-peak above
+# 10 Hz and 6 solver iterations per step; δ = 1 mm: 0.00 N and 1 iteration, as at 2 ms
+# (`python scripts/tension_chatter.py hold --variants default,presliding0.2mm,dt2ms`).
+# The capstan does not depend on δ (< 0.1 % from 0.05 to 0.2 mm, rows `continuum-sim
+# validate --only capstan`); 1 mm is 4 % of a section's 24 mm cable stroke.
+DEFAULT_PRESLIDING = 1.0e-3
 
 CABLE_TENDON_PATTERN = r"(^|/)cable_\d+_\d+$"
 

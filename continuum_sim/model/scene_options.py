@@ -42,6 +42,12 @@ class ToolOptions:
     # gripped at the grasp tilt (30° over the 12 mm grasp depth brings it ~8 mm closer).
     gripper_pad_thickness: float = 0.010
     gripper_spring: float = 20.0  # N/m, opening spring per jaw
+    # N, the opening spring's force on a jaw at its open stop. It must hold the jaw (about
+    # 24 g: 0.24 N) open in any orientation of the tool: without it (0) a tilted tool's jaw
+    # slid 5–13 mm closed under gravity during the approach, its pad met the sample before
+    # the grasp point and stopped the arm 18 mm short (docs/plant.md). 0.5 N = 2× the jaw's
+    # weight; at full travel the springs then ask 0.75 N of the 2 N cable.
+    gripper_preload: float = 0.5
     gripper_damping: float = 2.0  # N·s/m per jaw
     gripper_kp: float = 400.0  # N/m, cable position-loop gain
     gripper_max_force: float = 2.0  # N, largest cable tension (foam sample < 1 g)
@@ -71,6 +77,7 @@ class ToolOptions:
         require_range("gripper_pad_width", self.gripper_pad_width, 0.0, 0.2)
         require_range("gripper_pad_thickness", self.gripper_pad_thickness, 0.0, 0.05)
         require_range("gripper_spring", self.gripper_spring, 0.0, 1.0e5, low_inclusive=True)
+        require_range("gripper_preload", self.gripper_preload, 0.0, 100.0, low_inclusive=True)
         require_range("gripper_damping", self.gripper_damping, 0.0, 1.0e4, low_inclusive=True)
         require_positive("gripper_kp", self.gripper_kp)
         require_positive("gripper_max_force", self.gripper_max_force)

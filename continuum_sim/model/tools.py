@@ -44,7 +44,19 @@ JAW_JOINTS = ("jaw_a", "jaw_b")
 PAD_GEOMS = ("pad_a", "pad_b")
 
 # Collision priority: the foam's (soft) contact wins over everything else it touches.
-JAW_OPEN_REST = 5e-4  # m, where the spring holds an open jaw (from its stop, closing)
+JAW_OPEN_REST = 5e-4  # m, where an unloaded spring (no preload) holds an open jaw (from its stop, closing)
+
+
+def jaw_spring_reference(tools: ToolOptions) -> float:
+    """The jaw spring's rest position (m, closing positive): behind the open stop by
+    preload / stiffness, so an open jaw is pressed onto its stop with ``gripper_preload``.
+
+    Without a preload the jaw rests just inside its stop (JAW_OPEN_REST), off the limit
+    constraint — but then nothing but 20 N/m holds a 24 g jaw against gravity.
+    """
+    if tools.gripper_preload <= 0.0 or tools.gripper_spring <= 0.0:
+        return JAW_OPEN_REST
+    return -tools.gripper_preload / tools.gripper_spring
 PAD_PRIORITY = 2  # the gripper pads' (near-hard) contact wins over the foam's
 FOAM_PRIORITY = 1
 
@@ -232,9 +244,7 @@ def build_gripper(
             range=(0.0, tools.gripper_jaw_travel),
             limited=True,
             stiffness=tools.gripper_spring,
-            # Open jaws rest just inside their stop: resting on it would keep a limit
-            # constraint, and with it the whole arm, in the solver every step.
-            springref=JAW_OPEN_REST,
+            springref=jaw_spring_reference(tools),
             damping=tools.gripper_damping,
             armature=1e-4,
             # A hard end stop: the default soft limit let a jaw overrun by 3 mm at full grip force.
