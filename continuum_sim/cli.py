@@ -107,6 +107,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise
     finish(out, "complete")
     summary = {
+        "task_completed": metrics["task"]["completed"],
+        "task_failure": metrics["task"]["failure"],
         "sample_detached": metrics["sample_detached"],
         "sample_held_at_end": metrics["sample_held_at_end"],
         "detached_before_cut_complete": metrics["detached_before_cut_complete"],

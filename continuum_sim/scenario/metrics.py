@@ -89,6 +89,38 @@ def per_stage(values: Array, stage: Array, stage_names: tuple[str, ...]) -> dict
 SAMPLE_MOVED_M = 1e-3  # the welded sample moving this far on the plate counts as detached early
 HELD_DISTANCE_M = 0.05  # a held sample is within this of the gripper's tool centre …
 HELD_HEIGHT_M = 0.05  # … and lifted above this height (off the plate's level)
+SATURATION_FRACTION = 0.99  # a cable at this fraction of the motors' force rating is saturated
+
+# The named outcomes of a run, first that applies wins (``task_outcome``).
+TASK_FAILURES = (
+    "diverged",  # the simulation stopped early (non-finite state, MuJoCo warning)
+    "partial_run",  # only some stages were run: the task cannot complete
+    "detached_early",  # the welded sample moved before the cut freed it (dragged by the gripper)
+    "cables_saturated",  # not cut free, and a cable reached the motors' force rating
+    "spindle_stalled",  # not cut free, and the spindle stalled under the cutting load
+    "cut_incomplete",  # not cut free for any other reason (the cutter missed the kerf)
+    "sample_dropped",  # cut free after the cut, not held at the end
+)
+
+
+def task_outcome(metrics: dict[str, Any], all_stages: bool, force_rating: float) -> dict[str, Any]:
+    """Whether the task completed and, if not, its first named failure (TASK_FAILURES).
+
+    A variant of a design sweep then records *why* it failed, not only that it did.
+    """
+    saturated = metrics["max_cable_tension_n"] >= SATURATION_FRACTION * force_rating
+    stalls = (metrics.get("cutting") or {}).get("stall_events", 0)
+    checks = (
+        ("diverged", "diverged" in metrics),
+        ("partial_run", not all_stages),
+        ("detached_early", metrics["detached_before_cut_complete"]),
+        ("cables_saturated", not metrics["sample_detached"] and saturated),
+        ("spindle_stalled", not metrics["sample_detached"] and stalls > 0),
+        ("cut_incomplete", not metrics["sample_detached"]),
+        ("sample_dropped", not metrics["sample_held_at_end"]),
+    )
+    failure = next((name for name, failed in checks if failed), None)
+    return {"completed": failure is None, "failure": failure, "cables_saturated": bool(saturated)}
 
 
 def compute_metrics(trajectory: Trajectory, plan: TaskPlan, config: ScenarioConfig) -> dict[str, Any]:
@@ -144,4 +176,5 @@ def compute_metrics(trajectory: Trajectory, plan: TaskPlan, config: ScenarioConf
     out["wall_breakdown_s"] = dict(tr.wall_breakdown_s)
     if tr.failure is not None:
         out["diverged"] = tr.failure
+    out["task"] = task_outcome(out, tuple(tr.stages_run) == tuple(tr.stage_names), config.model.cable_max_force)
     return out
