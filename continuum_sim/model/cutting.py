@@ -33,6 +33,10 @@ cutter can reach (the whole plate outside the clamped strip, sample included) at
   no longer connected to the clamped edge. Then the weld ``sample_weld`` is released and
   every voxel that lost its connection leaves the grid (it went with the sample).
 
+The voxel work of each step (engagement, depth sampling, removal) runs in numba kernels
+(``cutting_kernels``) unless ``FoamOptions.native`` is false; both paths give bit-identical
+results.
+
 The forces are added to ``xfrc_applied``/``qfrc_applied`` (what was added the step before
 is taken back first), so other per-step models may add theirs.
 """
@@ -192,6 +196,8 @@ class FoamCutter:
                 band |= (gx - a[0] - t * ab[0]) ** 2 + (gy - a[1] - t * ab[1]) ** 2 <= (width / 2) ** 2
         self._band_columns = band
         self.spindle = SpindleLoop(tools)
+        self._edges = grid.lo[2] + np.arange(grid.shape[2] + 1) * grid.h[2]  # z layer edges (as layer_weights)
+        self._native = _compiled_kernels() if foam.native else None
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -283,35 +289,34 @@ class FoamCutter:
             vy = float(w[4] + w[2] * rx - w[0] * rz)
             speed = math.hypot(vx, vy)
             cutting = abs(omega) >= foam.min_cutting_speed and not self.spindle.stalled
-            weights = grid.layer_weights(z0, z1)
-            i0, i1 = grid.index_range(0, cx - r, cx + r)
-            j0, j1 = grid.index_range(1, cy - r, cy + r)
-            k0, k1 = grid.index_range(2, z0, z1)
-            dx = grid.centres[0][i0:i1] - cx
-            dy = grid.centres[1][j0:j1] - cy
-            inside_xy = dx[:, None] ** 2 + dy[None, :] ** 2 <= r * r
-            zc = grid.centres[2][k0:k1]
-            block = grid.material[i0:i1, j0:j1, k0:k1]
-            inside = block & inside_xy[:, :, None] & ((zc >= z0) & (zc <= z1))[None, None, :]
-            n_inside = int(np.count_nonzero(inside))
-            if cutting and speed > 1e-6:
-                ex, ey = vx / speed, vy / speed  # feed direction; e_n = z × e_f = (−ey, ex)
-                ct, st = self._cos_t, self._sin_t
-                qx = cx + probe * (ex * ct - ey * st)
-                qy = cy + probe * (ey * ct + ex * st)
-                depth = grid.depth_at(qx, qy, weights)
-                recent = self._recent
-                reached = (((qx[:, None] - recent[None, :, 0]) ** 2 + (qy[:, None] - recent[None, :, 1]) ** 2)
-                           < self._probe2).any(axis=1)
-                depth[reached] = 0.0
+            feeding = cutting and speed > 1e-6
+            ex, ey = (vx / speed, vy / speed) if feeding else (0.0, 0.0)  # feed direction; e_n = z × e_f = (−ey, ex)
+            if self._native is not None:
+                n_inside, d_cc, d_cs, d_c, mean_depth = self._native["engage"](
+                    grid.material, *grid.centres, self._edges, lo, grid.h, self._recent, self._cos_t, self._sin_t,
+                    self._i_cc, self._i_cs, self._i_c, cx, cy, z0, z1, r, probe, self._probe2, ex, ey, feeding)
+            else:
+                overlap = self._overlap(cx, cy, z0, z1)
+                n_inside = int(np.count_nonzero(overlap[-1]))
+                if feeding:
+                    ct, st = self._cos_t, self._sin_t
+                    qx = cx + probe * (ex * ct - ey * st)
+                    qy = cy + probe * (ey * ct + ex * st)
+                    depth = grid.depth_at(qx, qy, overlap[0])
+                    recent = self._recent
+                    reached = (((qx[:, None] - recent[None, :, 0]) ** 2 + (qy[:, None] - recent[None, :, 1]) ** 2)
+                               < self._probe2).any(axis=1)
+                    depth[reached] = 0.0
+                    d_cc, d_cs, d_c = float(depth @ self._i_cc), float(depth @ self._i_cs), float(depth @ self._i_c)
+                    mean_depth = float(depth.mean())
+            if feeding:
                 sgn = 1.0 if omega > 0 else -1.0
-                i_cc, i_cs = float(depth @ self._i_cc), float(depth @ self._i_cs)
                 k_t = self.u
                 k_r = k_t * foam.radial_ratio
                 # F = −(v_f/ω)·[K_r·(e_f I_cc + e_n I_cs) + s·K_t·(−e_f I_cs + e_n I_cc)], linear in
                 # the velocity: F = −D·v with D = [[a, −b], [b, a]] (a: against the feed, b: across).
-                a = (k_r * i_cc - sgn * k_t * i_cs) / abs(omega)
-                bb = (k_r * i_cs + sgn * k_t * i_cc) / abs(omega)
+                a = (k_r * d_cc - sgn * k_t * d_cs) / abs(omega)
+                bb = (k_r * d_cs + sgn * k_t * d_cc) / abs(omega)
                 # The force is −s·g with s the feed speed along e_f and g = a·e_f + b·e_n: a stiff
                 # damper on a light tool (a·dt/m ≈ 1 at twice the default foam density); applied
                 # explicitly it diverges. Backward Euler on s instead: s' = e_f·w / (1 + dt·e_f·L·g),
@@ -322,20 +327,25 @@ class FoamCutter:
                 fx = -feed * (a * ex - bb * ey)
                 fy = -feed * (a * ey + bb * ex)
                 c = feed / abs(omega)  # feed per radian: v_f/ω = c/(2π)
-                area = r * float(depth @ self._i_c)
+                area = r * d_c
                 torque = c * k_t * area  # = u·v_f·A/ω
                 state = CutState(
                     force=np.array([fx, fy, 0.0]), feed_force=-(fx * ex + fy * ey), normal_force=-fx * ey + fy * ex,
-                    torque=torque, mrr=feed * area, power=torque * abs(omega), depth=float(depth.mean()),
+                    torque=torque, mrr=feed * area, power=torque * abs(omega), depth=mean_depth,
                     chip=2 * math.pi * c, feed_speed=speed, cutting=area > 0.0,
                 )
             if n_inside and cutting:
-                block[inside] = False
-                grid.cut[i0:i1, j0:j1, k0:k1][inside] = True
+                if self._native is not None:
+                    self._native["remove"](grid.material, grid.cut, grid.removed_at, *grid.centres, lo, grid.h,
+                                           cx, cy, z0, z1, r, float(data.time))
+                else:
+                    weights, i0, i1, j0, j1, k0, k1, dx, dy, inside = overlap
+                    grid.material[i0:i1, j0:j1, k0:k1][inside] = False
+                    grid.cut[i0:i1, j0:j1, k0:k1][inside] = True
+                    cols = grid.removed_at[i0:i1, j0:j1]
+                    hit = inside.any(axis=2) & np.isnan(cols)
+                    cols[hit] = data.time
                 self.removed_volume += n_inside * grid.voxel_volume
-                cols = grid.removed_at[i0:i1, j0:j1]
-                hit = inside.any(axis=2) & np.isnan(cols)
-                cols[hit] = data.time
                 self._dirty = True
                 state.cutting = True
             elif n_inside:
@@ -343,6 +353,7 @@ class FoamCutter:
                 # cutter first pressed in, along the direction into the material then (the
                 # overlap's centroid seen from the axis), plus damping while pressing on.
                 if self._block is None:
+                    weights, *_, dx, dy, inside = self._overlap(cx, cy, z0, z1)  # (numpy: once per contact)
                     ii, jj, _ = np.nonzero(inside)
                     mx, my = float(dx[ii].mean()), float(dy[jj].mean())
                     norm = math.hypot(mx, my)
@@ -362,6 +373,22 @@ class FoamCutter:
         self._apply(fx, fy, cx, cy, z_mid, torque, omega, dt)
         self.state = state
         return state
+
+    def _overlap(self, cx: float, cy: float, z0: float, z1: float) -> tuple[Any, ...]:
+        """numpy path: (layer weights, i0, i1, j0, j1, k0, k1, dx, dy, inside) with ``inside`` the
+        material voxels of ``material[i0:i1, j0:j1, k0:k1]`` whose centres lie in the cutter."""
+        grid, r = self.grid, self.radius
+        weights = grid.layer_weights(z0, z1)
+        i0, i1 = grid.index_range(0, cx - r, cx + r)
+        j0, j1 = grid.index_range(1, cy - r, cy + r)
+        k0, k1 = grid.index_range(2, z0, z1)
+        dx = grid.centres[0][i0:i1] - cx
+        dy = grid.centres[1][j0:j1] - cy
+        inside_xy = dx[:, None] ** 2 + dy[None, :] ** 2 <= r * r
+        zc = grid.centres[2][k0:k1]
+        block = grid.material[i0:i1, j0:j1, k0:k1]
+        inside = block & inside_xy[:, :, None] & ((zc >= z0) & (zc <= z1))[None, None, :]
+        return weights, i0, i1, j0, j1, k0, k1, dx, dy, inside
 
     def _implicit_feed(self, vx: float, vy: float, ex: float, ey: float, a: float, b: float, dt: float,
                        x: float, y: float) -> float:
@@ -432,6 +459,25 @@ class FoamCutter:
             "voxels": list(self.grid.shape),
             "voxel_size_m": [float(h) for h in self.grid.h],
         }
+
+
+def _compiled_kernels() -> dict[str, Any]:
+    """``cutting_kernels.kernels()``, each run once on a scratch grid so numba compiles (or
+    loads its cache) here, with Ctrl-C held until done, not in the first cutting step."""
+    from . import cutting_kernels
+    from .jit import sigint_deferred
+
+    with sigint_deferred():
+        k = cutting_kernels.kernels()
+        material = np.ones((2, 2, 2), dtype=bool)
+        c = np.array([0.25, 0.75])
+        lo, h = np.zeros(3), np.full(3, 0.5)
+        edges, recent, trig = np.array([0.0, 0.5, 1.0]), np.full((2, 2), np.inf), np.array([0.6, 0.8])
+        k["engage"](material, c, c, c, edges, lo, h, recent, trig, trig, trig, trig, trig,
+                    0.5, 0.5, 0.0, 1.0, 0.4, 0.9, 0.8, 1.0, 0.0, True)
+        k["remove"](material, np.zeros_like(material), np.full((2, 2), np.nan, np.float32), c, c, c, lo, h,
+                    0.5, 0.5, 0.0, 1.0, 0.4, 0.0)
+    return k
 
 
 def _id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:

@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from ..configio import require_range
+from .jit import jit, sigint_deferred
 
 # *Assumed* default μ: a steel rope sliding in the holes of 3D-printed polymer disks (the
 # prototype's disks are printed, Table 1 of the paper). Dry steel on nylon/PLA/PTFE lies
@@ -84,10 +85,7 @@ class CableFrictionConfig:
 
 
 # ------------------------------------------------------------------------ numba kernels
-def _jit(fn):
-    from numba import njit
-
-    return njit(cache=True, fastmath=False, nogil=True)(fn)
+_jit = jit
 
 
 def _axis_angle(axis: np.ndarray, angle: float, R: np.ndarray) -> None:
@@ -715,27 +713,12 @@ def _compile_outside_the_callback(model, data, config: CableFrictionConfig, tend
     landing there was lost (a fresh clone's first interrupted run completed with exit 0).
     The scratch copy keeps the real data's stick/slip state untouched.
     """
-    import signal
-    import threading
-
     import mujoco
 
-    # llvmlite's own ctypes callbacks swallow a KeyboardInterrupt raised inside them (seen:
-    # a cold-cache compile ran on after Ctrl-C), so while compiling, Ctrl-C only records
-    # itself and is raised once the compile is done.
-    interrupted: list[int] = []
-    restore = None
-    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-        restore = signal.signal(signal.SIGINT, lambda signum, _frame: interrupted.append(signum))
-    try:
+    with sigint_deferred():
         scratch = mujoco.MjData(model)
         mujoco.mj_copyData(scratch, model, data)
         CableFriction(model, scratch, config, tendon_ids).apply(model, scratch)
-    finally:
-        if restore is not None:
-            signal.signal(signal.SIGINT, restore)
-    if interrupted:
-        raise KeyboardInterrupt
 
 
 def install_cable_friction(

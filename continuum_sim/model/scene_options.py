@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..configio import require_int, require_positive, require_range, require_solimp, require_solref
+from ..configio import ConfigError, require_int, require_positive, require_range, require_solimp, require_solref
 
 
 @dataclass(frozen=True)
@@ -134,6 +134,9 @@ class FoamOptions:
     block_damping: float = 10.0  # N·s/m
     connectivity_period: float = 0.1  # s between connectivity checks (only after material was removed; ~3 ms each at 1 mm)
     grip_radius: float = 0.006  # m: the material under the jaws, around the grasp point
+    # The voxel work of each physics step in compiled numba kernels (model/cutting_kernels.py);
+    # false: the numpy path. Both give bit-identical results (tests/test_cutting_native.py).
+    native: bool = True
 
     def __post_init__(self) -> None:
         require_positive("specific_energy", self.specific_energy)
@@ -148,6 +151,8 @@ class FoamOptions:
         require_range("block_damping", self.block_damping, 0.0, 1.0e4, low_inclusive=True)
         require_range("connectivity_period", self.connectivity_period, 0.0, 10.0, low_inclusive=True)
         require_range("grip_radius", self.grip_radius, 0.0, 0.1)
+        if not isinstance(self.native, bool):
+            raise ConfigError("native", f"must be true or false (got {self.native!r})")
 
     def cutting_energy(self, density: float) -> float:
         """u (J/m³) of a foam of ``density`` (kg/m³)."""

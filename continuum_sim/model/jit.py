@@ -1,0 +1,39 @@
+"""numba helpers shared by the compiled per-step kernels (``friction``, ``cutting_kernels``)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+
+def jit(fn: Callable[..., Any]) -> Any:
+    """``fn`` compiled by numba in nopython mode, cached on disk (no fast-math: results are IEEE exact)."""
+    from numba import njit
+
+    return njit(cache=True, fastmath=False, nogil=True)(fn)
+
+
+@contextmanager
+def sigint_deferred() -> Iterator[None]:
+    """While the block runs (a numba compile, or a load from its cache), Ctrl-C only records
+    itself; a ``KeyboardInterrupt`` is raised once the block is done.
+
+    llvmlite's own ctypes callbacks swallow a KeyboardInterrupt raised inside them (seen: a
+    cold-cache compile ran on after Ctrl-C). Only in the main thread, and only while Python's
+    default handler is installed.
+    """
+    import signal
+    import threading
+
+    interrupted: list[int] = []
+    restore = None
+    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        restore = signal.signal(signal.SIGINT, lambda signum, _frame: interrupted.append(signum))
+    try:
+        yield
+    finally:
+        if restore is not None:
+            signal.signal(signal.SIGINT, restore)
+    if interrupted:
+        raise KeyboardInterrupt

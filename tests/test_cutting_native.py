@@ -1,0 +1,102 @@
+"""The compiled cutter (``FoamOptions.native``, model/cutting_kernels.py) against the numpy
+path: bit-identical per physics step on a cutting rig, and identical task metrics of the
+default run."""
+
+import dataclasses
+import math
+
+import mujoco
+import numpy as np
+import pytest
+from test_cutting import OFFSET, SPEED, cut_path, make
+
+from continuum_sim.configio import ConfigError
+from continuum_sim.model.cutting import CutState, FoamOptions
+from continuum_sim.model.scene import SceneOptions
+from continuum_sim.model.tools import ToolOptions
+
+STATE_FIELDS = [f.name for f in dataclasses.fields(CutState)]
+
+
+def _rig(native: bool, tools: ToolOptions | None = None):
+    return make(SceneOptions(foam=FoamOptions(native=native), tools=tools or ToolOptions()))
+
+
+def _lockstep(tools: ToolOptions | None = None, spindle=lambda t: SPEED, feed=0.04, jitter=(0.0008, 7.0), until=None):
+    """Both paths driven along the L cut (with back-and-forth jitter, which exercises the
+    recent-centres exclusion); asserts every step's CutState, the grid and the MuJoCo state equal."""
+    rigs = [_rig(True, tools), _rig(False, tools)]
+    points = cut_path()
+    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+    duration = 0.5 + cum[-1] / feed if until is None else until
+
+    def at(s):
+        s = float(np.clip(s, 0.0, cum[-1]))
+        i = min(int(np.searchsorted(cum, s, side="right")) - 1, len(points) - 2)
+        return points[i] + (s - cum[i]) / (cum[i + 1] - cum[i]) * (points[i + 1] - points[i])
+
+    for model, data, _ in rigs:
+        free = model.jnt_qposadr[model.body("left/").jntadr[0]]
+        data.mocap_pos[model.body("left_target").mocapid[0]] = data.qpos[free:free + 3] = points[0] - OFFSET
+        mujoco.mj_forward(model, data)
+    counts = {"steps": 0, "feeding": 0, "removing": 0, "blocked": 0, "checks": 0}
+    (m1, d1, c1), (m2, d2, c2) = rigs
+    while d1.time < duration:
+        s = feed * max(d1.time - 0.5, 0.0) + jitter[0] * math.sin(2 * math.pi * jitter[1] * d1.time)
+        states = []
+        for model, data, cutter in rigs:
+            data.mocap_pos[model.body("left_target").mocapid[0]] = at(s) - OFFSET
+            states.append(cutter.step(spindle(data.time)))
+            mujoco.mj_step(model, data)
+            cutter.after_step()
+        a, b = states
+        for name in STATE_FIELDS:
+            assert np.array_equal(getattr(a, name), getattr(b, name)), (d1.time, name, getattr(a, name), getattr(b, name))
+        assert c1.removed_volume == c2.removed_volume and c1.detach_time == c2.detach_time
+        assert np.array_equal(d1.qpos, d2.qpos) and np.array_equal(d1.qvel, d2.qvel), d1.time
+        if states[0].feed_speed and states[0].depth > 0:
+            counts["feeding"] += 1
+        counts["removing"] += c1.removed_volume > 0 and states[0].cutting
+        counts["blocked"] += states[0].blocked
+        counts["steps"] += 1
+    g1, g2 = c1.grid, c2.grid
+    assert np.array_equal(g1.material, g2.material) and np.array_equal(g1.cut, g2.cut)
+    assert np.array_equal(g1.removed_at, g2.removed_at, equal_nan=True)
+    assert c1.checks == c2.checks and c1.detached == c2.detached
+    counts["checks"] = c1.checks
+    return counts, c1
+
+
+def test_native_cutter_equals_numpy_per_step_through_the_whole_cut():
+    """The L cut to detachment: engagement, force, removal, recent-centres exclusion."""
+    counts, cutter = _lockstep()
+    assert counts["feeding"] > 500 and counts["removing"] > 500
+    assert cutter.detached and cutter.cells_remaining == 0
+
+
+def test_native_cutter_equals_numpy_when_blocked():
+    """Spindle off while the cutter is pressed in (the block spring), then on again."""
+    counts, cutter = _lockstep(spindle=lambda t: SPEED if t < 0.9 or t > 1.3 else 0.0, until=1.6)
+    assert counts["blocked"] > 10 and counts["removing"] > 10
+
+
+def test_native_option_validates():
+    assert FoamOptions().native is True
+    with pytest.raises(ConfigError, match="native"):
+        FoamOptions(native=1)  # type: ignore[arg-type]
+
+
+def test_default_task_metrics_equal_between_the_paths():
+    """The whole default run (it mills, detaches and carries the sample) with either path."""
+    from continuum_sim.scenario.config import ScenarioConfig
+    from continuum_sim.scenario.metrics import WALL_CLOCK_METRICS
+    from continuum_sim.scenario.runner import run_scenario
+
+    config = ScenarioConfig.default()
+    assert config.scene.foam.native
+    python = dataclasses.replace(config, scene=dataclasses.replace(
+        config.scene, foam=dataclasses.replace(config.scene.foam, native=False)))
+    native_metrics, python_metrics = (
+        {k: v for k, v in run_scenario(c, None).items() if k not in WALL_CLOCK_METRICS} for c in (config, python))
+    assert native_metrics["task"]["completed"]
+    assert native_metrics == python_metrics  # bit-identical: == on every float
