@@ -76,10 +76,10 @@ class SampleRemovalEnv(gym.Env[dict[str, Any], NDArray[np.float32]]):
         render_mode: str | None = None,
     ) -> None:
         from .model.options import model_geometry
-        from .scenario.runner import build_scene_model, plan_extent
+        from .scenario.runner import build_scene_model, plan_extent, with_stable_step
         from .toolpath import plan_task
 
-        self.config = ScenarioConfig.default() if config is None else config
+        self.config = with_stable_step(ScenarioConfig.default() if config is None else config)
         if ticks_per_step < 1:
             raise ValueError(f"ticks_per_step: must be >= 1 (got {ticks_per_step})")
         if base_controller not in ("open", "closed"):

@@ -85,7 +85,7 @@ def test_interrupted_run_is_one_line_and_marked(tmp_path, sig, code, video):
 def test_diverged_run_is_marked(tmp_path, capsys):
     config = tmp_path / "diverge.toml"
     # An explicit stiff cable spring at a 10 ms step: unstable (docs/plant.md, "Tension chatter").
-    config.write_text("[model]\ntimestep = 0.01\ncable_implicit_spring = false\ncable_max_force = 1.0e5\n")
+    config.write_text("[model]\ntimestep = 0.01\ncable_implicit_spring = false\nstable_step = false\ncable_max_force = 1.0e5\n")
     out = tmp_path / "run"
     assert main(["run", "--quiet", "--config", str(config), "--out", str(out)]) == EXIT_DIVERGED
     assert "diverged" in _one_line(capsys.readouterr().err)

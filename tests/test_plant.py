@@ -255,3 +255,34 @@ def test_held_grasp_has_no_tension_chatter_and_the_explicit_spring_is_its_cause(
             spectrum = np.abs(np.fft.rfft(high[:, np.argmax(np.ptp(high, axis=0))]))
             peak = np.fft.rfftfreq(len(high), 1.0 / rate)[np.argmax(spectrum)]
             assert 15.0 <= peak <= 30.0, peak
+
+
+def test_stable_step_divides_the_step_for_stiff_cables_only():
+    """The shipped rope keeps the 4 ms step; a 3.7 mm rope (≈1.7e6 N/m proximal) gets the
+    smallest whole division that brings k·h² within the verified limit; off: as configured."""
+    from continuum_sim.model.motors import CABLE_STEP_LIMIT, cable_stiffness, stable_timestep
+
+    geometry = ArmGeometry()
+    shipped = ModelOptions(timestep=0.004)
+    assert stable_timestep(geometry, shipped) == 0.004
+    stiff = ModelOptions(timestep=0.004, rope_diameter=0.0037)
+    h = stable_timestep(geometry, stiff)
+    k = cable_stiffness(geometry, stiff).max()
+    n = round(0.004 / h)
+    assert 0.004 / h == pytest.approx(n) and n >= 2
+    assert k * h * h <= CABLE_STEP_LIMIT < k * (0.004 / (n - 1)) ** 2  # the smallest such n
+    assert stable_timestep(geometry, ModelOptions(timestep=0.004, rope_diameter=0.0037, stable_step=False)) == 0.004
+    lumped = ModelOptions(timestep=0.004, cable_model="lumped", cable_kp=1.0e6)
+    assert 1.0e6 * stable_timestep(geometry, lumped) ** 2 <= CABLE_STEP_LIMIT
+
+
+def test_stiff_cables_run_at_the_stable_step_without_diverging():
+    """1e6 N/m-class cables diverged at the 4 ms step (saturated, flailing arm); the run now
+    resolves its step first, records it, and the clamping stage runs to its end."""
+    from continuum_sim.scenario.config import ScenarioConfig, merged
+    from continuum_sim.scenario.runner import run_scenario
+
+    config = merged(ScenarioConfig.default(), {"model": {"rope_diameter": 0.0037}})
+    metrics = run_scenario(config, None, stages=("initial", "clamping"))
+    assert metrics["timestep_s"] == pytest.approx(0.002)
+    assert "diverged" not in metrics and metrics["task"]["failure"] == "partial_run"

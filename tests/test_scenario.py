@@ -121,7 +121,7 @@ def test_open_loop_runs_and_strays_further_than_closed(tmp_path):
 def test_divergence_stops_with_a_message_and_keeps_results(tmp_path):
     # A 10 ms step with stiff, unsaturated motor loops is far past the explicit stability
     # limit (with the default 150 N force limit the arms flail but stay bounded).
-    config = merged(ScenarioConfig.default(), {"model": {"timestep": 0.01, "cable_kp": 1.0e6, "cable_max_force": 1.0e5,
+    config = merged(ScenarioConfig.default(), {"model": {"timestep": 0.01, "cable_kp": 1.0e6, "cable_max_force": 1.0e5, "stable_step": False,
                                                           "cable_model": "lumped"}})
     with pytest.raises(SimulationDiverged, match="simulation diverged: MuJoCo warning|non-finite"):
         run_scenario(config, tmp_path, stages=("initial", "clamping"))

@@ -102,7 +102,7 @@ def test_diverging_scenario_variant_is_recorded_as_failed():
     from continuum_sim.configio import to_dict
     from continuum_sim.scenario.config import ScenarioConfig, merged
 
-    config = merged(ScenarioConfig(), {"model": {"timestep": 0.01, "cable_implicit_spring": False, "cable_max_force": 1.0e5}})
+    config = merged(ScenarioConfig(), {"model": {"timestep": 0.01, "cable_implicit_spring": False, "stable_step": False, "cable_max_force": 1.0e5}})
     result = sweep_worker.evaluate_payload({"config": to_dict(config), "evaluation": {"kind": "stage", "stage": "clamping"}})
     assert result["status"] == "failed" and "diverged" in result["error"]
 

@@ -72,6 +72,24 @@ def cable_stiffness(geometry: ArmGeometry, options: ModelOptions, in_arm: Array 
     return rope_axial_stiffness(options) / routed_lengths(geometry, options, in_arm)
 
 
+# N·s²/m: the largest k·h² of an arm's stiffest cable verified to run the whole default task
+# (rope d = 2.08 mm: proximal cables 5.4e5 N/m at the 4 ms step, the task completes or fails
+# by name); d = 2.6 mm (8.5e5 N/m, k·h² = 13.5) and 3.7 mm (1.7e6 N/m) diverged at 4 ms and
+# run at 2 ms (docs/plant.md, "Cable stiffness 1e4–1e6 N/m"). The shipped rope: 2.0.
+CABLE_STEP_LIMIT = 8.6
+
+
+def stable_timestep(geometry: ArmGeometry, options: ModelOptions) -> float:
+    """The physics step (s): ``options.timestep`` divided by the smallest whole n with
+    k_max·(h/n)² ≤ CABLE_STEP_LIMIT for the stiffest cable (EA/L or the lumped gain)."""
+    h = float(options.timestep)
+    if not options.stable_step or not options.tendons:
+        return h
+    k = float(np.max(cable_stiffness(geometry, options)))
+    n = max(1, math.ceil(math.sqrt(k * h * h / CABLE_STEP_LIMIT) - 1e-9))
+    return h / n
+
+
 def implicit_spring_step(options: ModelOptions) -> float:
     """h (s) of the cable spring's backward-Euler velocity term k·h, or 0 when it is off."""
     return float(options.timestep) if options.cable_implicit_spring else 0.0

@@ -169,6 +169,7 @@ def compute_metrics(trajectory: Trajectory, plan: TaskPlan, config: ScenarioConf
     out["detached_before_cut_complete"] = bool(np.any(moved & tr.sample_welded))
     sample, tcp = tr.sample_pos[-1], gripper.tcp_pos[-1]
     out["sample_held_at_end"] = bool(np.linalg.norm(sample - tcp) < HELD_DISTANCE_M and sample[2] > HELD_HEIGHT_M)
+    out["timestep_s"] = float(config.model.timestep)  # the step the run used (model.stable_step may divide it)
     out["stages_run"] = list(tr.stages_run)
     out["sim_seconds"] = float(tr.t[-1])
     out["wall_seconds"] = float(tr.wall_seconds)

@@ -69,6 +69,7 @@ def run_scenario(
     """
     clock = _Clock()
     out = None if out_dir is None else Path(out_dir)
+    config = with_stable_step(config)  # stiff cables: a smaller whole fraction of model.timestep
     check_scenario(config)  # refused before planning: arm x segments overlap, MuJoCo steps per control tick
     plan = plan_task(model_geometry(config.arm, config.model), config.layout, config.plan)
     clock.lap("plan")
@@ -125,6 +126,22 @@ def plan_extent(plan: TaskPlan, stages: tuple[str, ...] | None) -> tuple[tuple[s
         raise ValueError(f"stages: unknown stage {unknown[0]!r}; known stages are {', '.join(names)}")
     last = max(names.index(s) for s in stages)
     return tuple(stages), float(plan.t[np.flatnonzero(plan.stage <= last)[-1]])
+
+
+def with_stable_step(config: ScenarioConfig) -> ScenarioConfig:
+    """The configuration with ``model.timestep`` the step the run uses (``model.motors.stable_timestep``).
+
+    Resolved once, before anything is planned or built, so the model, the limits, the motor
+    loops and the saved ``config.toml`` all see the same step (re-resolving it is a no-op).
+    """
+    import dataclasses
+
+    from ..model.motors import stable_timestep
+
+    h = stable_timestep(model_geometry(config.arm, config.model), config.model)
+    if h == config.model.timestep:
+        return config
+    return dataclasses.replace(config, model=dataclasses.replace(config.model, timestep=h))
 
 
 def build_scene_model(config: ScenarioConfig) -> tuple[Any, mujoco.MjModel]:
