@@ -46,7 +46,13 @@ class ControlConfig:
     # with the strain-limited leaves a bend needs ~100 N on its inner cables, whose stretch
     # unloads the outer ones; at 10 N a quarter of the task's records had a slack cable.
     pretension: float = 30.0
-    outer_gain: float = 8.0  # 1/s, integral gain of the task-space correction
+    outer_gain: float = 8.0  # 1/s, integral gain of the task-space correction (gain_mode "plant": the loop's crossover ω_c)
+    # "fixed": the correction integrates outer_gain × the bending-coordinate error; "plant":
+    # the gain is derived per arm from the plant (continuum_sim.gains, docs/plant.md "Outer-loop
+    # gains from the plant"): G = ω_c·R⁻¹ with R the static transmission (cable stretch against
+    # the hinge stiffness), ω_c = min(outer_gain, mode_fraction × the arm's first bending mode ω₁).
+    gain_mode: Literal["fixed", "plant"] = "fixed"
+    mode_fraction: float = 0.5  # gain_mode "plant": cap of the crossover as a fraction of the arm's first mode ω₁
     # Proportional share of the pose error added to the command. It feeds the pose measured
     # every tick straight back: at 2 it rang the ~20-25 Hz cable-arm mode (docs/plant.md).
     outer_proportional: float = 0.5
@@ -70,6 +76,9 @@ class ControlConfig:
         require_range("rate_hz", self.rate_hz, 1.0, 10000.0, low_inclusive=True)
         require_range("pretension", self.pretension, 0.0, 1000.0, low_inclusive=True)
         require_range("outer_gain", self.outer_gain, 0.0, 1000.0, low_inclusive=True)
+        if self.gain_mode not in ("fixed", "plant"):
+            raise ConfigError("gain_mode", f"must be 'fixed' or 'plant' (got {self.gain_mode!r})")
+        require_range("mode_fraction", self.mode_fraction, 0.0, 1.0)
         require_range("outer_proportional", self.outer_proportional, 0.0, 10.0, low_inclusive=True)
         require_positive("orientation_weight", self.orientation_weight)
         require_range("damping", self.damping, 0.0, 1.0, low_inclusive=True)
@@ -127,10 +136,14 @@ class ArmController:
         tool_length: float,
         cable_kp: float | Array,
         roll_free: bool = False,
+        gain: Array | None = None,
     ) -> None:
+        """``gain``: the outer loop's (2n × 2n) integral gain matrix (1/s, ``gains.plant_gain``);
+        None integrates with the scalar ``config.outer_gain``."""
         self.geometry = geometry
         self.roll_free = bool(roll_free)
         self.config = config
+        self.gain = None if gain is None else np.asarray(gain, dtype=float)
         self.base = np.asarray(base, dtype=float)
         self._base_rot_rows = self.base[:3, :3].T.tolist()  # rows of Rᵀ: world -> arm base frame
         self.tool_length = float(tool_length)
@@ -262,7 +275,10 @@ class ArmController:
             J = np.vstack((J[:3], np.array(axes) @ J[3:]))
         error = np.array(rows)
         step = J.T @ _solve_spd(J @ J.T + self._regulariser, error)
-        self.correction += self.config.outer_gain * dt * step
+        if self.gain is None:
+            self.correction += self.config.outer_gain * dt * step
+        else:
+            self.correction += dt * (self.gain @ step)
         self.proportional = self.config.outer_proportional * step
         # Bound the correction per section so a transient cannot wind it up.
         c = self.correction

@@ -162,6 +162,22 @@ class PlanTrackingController:
         self.plan = context.plan
         self.gripper_arm = context.tool_arm["gripper"]
         self.grinder_arm = context.tool_arm["grinder"]
+        self.plant_gains: dict[str, Any] = {}  # arm -> gains.PlantGain (gain_mode "plant")
+        if control.gain_mode == "plant" and control.mode == "closed":
+            from .gains import plant_gain
+
+            for arm in context.arms:
+                tool = context.layout.tool_of(arm)
+                self.plant_gains[arm] = plant_gain(
+                    context.geometry,
+                    cfg.model,
+                    control.outer_gain,
+                    control.mode_fraction,
+                    control.pretension,
+                    cable_stiffness(cfg.arm, cfg.model),
+                    tool_mass={"grinder": cfg.model.grinder_mass, "gripper": cfg.model.gripper_mass}.get(tool, 0.0),
+                    tool_length=cfg.arm.tools.length(tool),
+                )
         self._arms = {
             arm: ArmController(
                 context.geometry,
@@ -170,6 +186,7 @@ class PlanTrackingController:
                 cfg.arm.tools.length(context.layout.tool_of(arm)),
                 cable_stiffness(cfg.arm, cfg.model),  # per cable: EA/L (elastic) or the lumped gain
                 roll_free=arm == self.grinder_arm,  # the cutter is axisymmetric (planned in 'axis' mode too)
+                gain=self.plant_gains[arm].matrix if arm in self.plant_gains else None,
             )
             for arm in context.arms
         }
