@@ -132,13 +132,14 @@ def _arm_modes_cached(
 ) -> ArmModes:
     import mujoco
 
+    from .model import names
     from .model.arm import build_single_arm_model
     from .model.motors import cable_stiffness
     from .model.options import model_geometry
 
     root = build_single_arm_model(geometry, options, gravity=False)
     if tool_mass > 0.0:
-        tip = root.find("site", "arm/tool_mount").parent
+        tip = root.find("site", names.scoped(names.SINGLE_ARM, names.TOOL_MOUNT_SITE)).parent
         tip.add("geom", type="sphere", size=(0.005,), pos=(0.0, 0.0, tool_length / 2.0), mass=tool_mass, contype=0, conaffinity=0)
     model = mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
     data = mujoco.MjData(model)
