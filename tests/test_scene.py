@@ -348,3 +348,14 @@ def test_invalid_scene_config_names_the_field(make, field):
     with pytest.raises(ConfigError) as info:
         make()
     assert info.value.field == field
+
+
+def test_a_preload_the_gripper_cable_cannot_beat_is_refused():
+    """The jaws' opening preload plus the spring at full travel must stay below the cable's
+    force rating, or the gripper never closes: refused with the field and its bound."""
+    from continuum_sim.configio import ConfigError
+    from continuum_sim.model.scene_options import ToolOptions
+
+    with pytest.raises(ConfigError, match="gripper_preload: must satisfy .* < gripper_max_force"):
+        ToolOptions(gripper_preload=2.0)
+    assert ToolOptions(gripper_preload=1.5).gripper_preload == 1.5

@@ -37,3 +37,4 @@ def test_each_failure_is_named_and_the_first_wins(changes, all_stages, failure):
 def test_saturation_is_reported_even_when_the_task_completes():
     outcome = task_outcome(_metrics(max_cable_tension_n=199.0), True, RATING)
     assert outcome == {"completed": True, "failure": None, "cables_saturated": True}
+

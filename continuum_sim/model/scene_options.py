@@ -85,6 +85,14 @@ class ToolOptions:
         require_solref("pad_solref", self.pad_solref)
         require_solimp("pad_solimp", self.pad_solimp)
         require_range("pad_friction", self.pad_friction, 0.0, 10.0, low_inclusive=True)
+        # The cable must out-pull the opening springs at full travel, or the jaws never close.
+        most = self.gripper_max_force - self.gripper_spring * self.gripper_jaw_travel
+        if self.gripper_preload >= most:
+            raise ConfigError(
+                "gripper_preload",
+                f"must satisfy 0 <= gripper_preload < gripper_max_force - gripper_spring * gripper_jaw_travel = {most:.3g} N "
+                f"(got {self.gripper_preload:g}): the cable could not close the jaws",
+            )
 
     @property
     def gripper_closed_gap(self) -> float:
