@@ -195,6 +195,7 @@ class FoamCutter:
                 t = np.clip(((gx - a[0]) * ab[0] + (gy - a[1]) * ab[1]) / float(ab @ ab), 0.0, 1.0)
                 band |= (gx - a[0] - t * ab[0]) ** 2 + (gy - a[1] - t * ab[1]) ** 2 <= (width / 2) ** 2
         self._band_columns = band
+        self._band_flat = np.flatnonzero(band)  # the band's columns in material.reshape(-1, nz)
         self.spindle = SpindleLoop(tools)
         self._edges = grid.lo[2] + np.arange(grid.shape[2] + 1) * grid.h[2]  # z layer edges (as layer_weights)
         self._native = _compiled_kernels() if foam.native else None
@@ -233,7 +234,8 @@ class FoamCutter:
     @property
     def cells_remaining(self) -> int:
         """Kerf-band columns with material left in them."""
-        return int(np.count_nonzero(self.grid.material[self._band_columns].any(axis=1)))
+        material = self.grid.material
+        return int(np.count_nonzero(material.reshape(-1, material.shape[2])[self._band_flat].any(axis=1)))
 
     @property
     def removal_time(self) -> np.ndarray:

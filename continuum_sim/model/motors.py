@@ -31,6 +31,7 @@ ramps; a finer motor loop would only sharpen a response the arm cannot follow.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -281,11 +282,95 @@ class MotorDrive:
             model, [grip], [int(model.actuator_trnid[grip, 0])], ratings, ideal=options.cable_model == "lumped"  # type: ignore[arg-type]
         )
         self.spindle = int(handles.spindle_actuator)
+        self._fused = self._fuse(model) if options.cable_model != "lumped" else None
+        self._views: tuple | None = None  # the banks' state as views into the fused arrays
+        self._state: tuple = ()  # the fused (position, integral, set_point) behind those views
+
+    def _fuse(self, model) -> dict:
+        """Per-element constants of every elastic cable motor and the gripper motor, in one vector.
+
+        ``MotorBank.command`` per bank and this fused update do the same elementwise float
+        operations (scalar ratings become per-element arrays of the same values), so the
+        results are bit-identical; only the per-call overhead is shared.
+        """
+        banks = [*self.banks.values(), self.gripper]
+        nc = sum(len(b.actuators) for b in self.banks.values())
+
+        def per(f) -> Array:
+            return np.concatenate([np.full(len(b.actuators), float(f(b))) for b in banks])
+
+        bounds = np.cumsum([0] + [len(b.actuators) for b in banks])
+        return dict(
+            banks=banks, nc=nc, slices=[slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)],
+            act=np.concatenate([b.actuators for b in banks]),
+            ten=np.concatenate([b.tendons for b in banks]),
+            cable_act=np.concatenate([b.actuators for b in self.banks.values()]),
+            grip_act=int(self.gripper.actuators[0]),
+            ea=np.concatenate([b.ea for b in self.banks.values()]),
+            lead=np.concatenate([b.lead for b in self.banks.values()]),
+            vg=per(lambda b: b.velocity_gain)[:nc], h=per(lambda b: b.implicit_step),
+            hc=per(lambda b: b.implicit_step)[:nc],
+            droop=per(lambda b: b.ratings.droop), kp=per(lambda b: b.ratings.kp), ki=per(lambda b: b.ratings.ki),
+            vmax=per(lambda b: b.ratings.max_speed),
+            gainprm=model.actuator_gainprm, biasprm=model.actuator_biasprm,
+        )
 
     def __call__(self, sim, commands) -> None:
         dt = 0.0 if sim.tick < 0 else sim.control_period
         data = sim.data
-        for arm, bank in self.banks.items():
-            bank.command(data, commands.cable_lengths[arm], dt)
-        self.gripper.command(data, np.array([commands.gripper_cable], dtype=float), dt)
+        f = self._fused
+        if f is not None and dt > 0.0 and all(b._started for b in f["banks"]):
+            self._fused_command(data, commands, dt)
+        else:
+            self._views = None
+            for arm, bank in self.banks.items():
+                bank.command(data, commands.cable_lengths[arm], dt)
+            self.gripper.command(data, np.array([commands.gripper_cable], dtype=float), dt)
         data.ctrl[self.spindle] = commands.spindle_speed
+
+    def _fused_command(self, data, commands, dt: float) -> None:
+        """``MotorBank.command`` of every bank at once (elastic model, dt > 0, banks started)."""
+        f = self._fused
+        assert f is not None
+        banks, nc = f["banks"], f["nc"]
+        views = self._views
+        if views is None or any(b.position is not v[0] or b.integral is not v[1] or b.set_point is not v[2]
+                                for b, v in zip(banks, views, strict=True)):
+            x = np.concatenate([b.position for b in banks])
+            integral = np.concatenate([b.integral for b in banks])
+            set_point = np.concatenate([b.set_point for b in banks])
+        else:
+            x, integral, set_point = self._state
+        s = np.empty(len(x))
+        for arm, sl in zip(self.banks, f["slices"], strict=False):
+            s[sl] = commands.cable_lengths[arm]
+        s[nc] = commands.gripper_cable
+        length = data.ten_length[f["ten"]]
+        k = np.empty(len(x))
+        k[:nc] = f["ea"] / (f["lead"] + length[:nc])
+        k[nc:] = f["gainprm"][f["grip_act"], 0]
+        taut = length > x
+        kc = k[:nc]
+        act = f["cable_act"]
+        f["gainprm"][act, 0] = kc
+        f["biasprm"][act, 1] = -kc
+        f["biasprm"][act, 2] = -(f["vg"] + np.where(taut[:nc], kc * f["hc"], 0.0))
+        kp, ki, vmax = f["kp"], f["ki"], f["vmax"]
+        v_ff = (s - set_point) / dt
+        dk = np.where(taut, f["droop"] * k, 0.0)
+        a = kp + ki * dt
+        x_new = (x + dt * (v_ff + a * s + ki * integral + dk * length)) / (1.0 + dt * (a + dk))
+        v_cmd = v_ff + a * (s - x_new) + ki * integral
+        saturated = np.abs(v_cmd) > vmax
+        if saturated.any():
+            v_sat = np.clip(v_cmd, -vmax, vmax)
+            x_sat = (x + dt * (v_sat + dk * length)) / (1.0 + dt * dk)
+            x_new = np.where(saturated, x_sat, x_new)
+        integral = np.where(saturated, integral, integral + dt * (s - x_new))
+        data.ctrl[f["act"]] = 0.5 * (x + x_new) + f["h"] * (x_new - x) / dt
+        self._state = (x_new, integral, s)
+        out = []
+        for b, sl in zip(banks, f["slices"], strict=True):
+            b.position, b.integral, b.set_point = x_new[sl], integral[sl], s[sl]
+            out.append((b.position, b.integral, b.set_point))
+        self._views = tuple(out)
