@@ -38,7 +38,7 @@ from continuum_sim.sweep import runner as sweep_runner  # noqa: E402
 def make_spec(n: int, settle: float):
     return parse_spec(
         {
-            "grid": {"model.stiffness_scale": {"start": 0.5, "stop": 8.0, "num": n, "scale": "log"}},  # x8: the design range (above it the static evaluation diverges, docs/plant.md)
+            "grid": {"model.stiffness_scale": {"start": 0.5, "stop": 8.0, "num": n, "scale": "log"}},  # x8: the design range (above it model.stable_step halves the step)
             "evaluation": {"kind": "gravity_sag", "settle_s": settle},
         }
     )

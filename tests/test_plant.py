@@ -286,3 +286,15 @@ def test_stiff_cables_run_at_the_stable_step_without_diverging():
     metrics = run_scenario(config, None, stages=("initial", "clamping"))
     assert metrics["timestep_s"] == pytest.approx(0.002)
     assert "diverged" not in metrics and metrics["task"]["failure"] == "partial_run"
+
+
+def test_stable_step_divides_the_step_for_hinges_above_the_verified_range():
+    """Hinges ×8 (the top of the design range) keep 4 ms; ×16, which diverged at 4 ms, gets 2 ms."""
+    from continuum_sim.model.motors import JOINT_STEP_LIMIT, stable_timestep, stiffest_joint
+
+    geometry = ArmGeometry()
+    assert stable_timestep(geometry, ModelOptions(timestep=0.004, stiffness_scale=8.0)) == 0.004
+    stiff = ModelOptions(timestep=0.004, stiffness_scale=16.0)
+    assert stable_timestep(geometry, stiff) == pytest.approx(0.002)
+    assert stiffest_joint(geometry, stiff) * 0.002**2 <= JOINT_STEP_LIMIT < stiffest_joint(geometry, stiff) * 0.004**2
+    assert stiffest_joint(geometry, ModelOptions(stiffness_scale=16.0)) == pytest.approx(16 * stiffest_joint(geometry, ModelOptions()))

@@ -80,14 +80,39 @@ def cable_stiffness(geometry: ArmGeometry, options: ModelOptions, in_arm: Array 
 CABLE_STEP_LIMIT = 8.6
 
 
+# N·m·s²/rad: the largest k·h² of the stiffest flexure joint verified to run the whole default
+# task (hinges ×8 at 4 ms: 91.9 N·m/rad, 1.47e-3); ×11.3 (130 N·m/rad, 2.1e-3) diverged at 4 ms
+# in the task and in the static sag evaluation, ×16 runs at 2 ms (named failure, not divergence).
+# Joint springs are explicit under implicitfast, as the cable spring was (docs/plant.md).
+JOINT_STEP_LIMIT = 1.5e-3
+
+
+def stiffest_joint(geometry: ArmGeometry, options: ModelOptions) -> float:
+    """The largest flexure-joint spring (N·m/rad) of the model (0 for the rod backbone)."""
+    from .stiffness import joint_stiffnesses
+
+    if geometry.backbone == "rod":
+        return 0.0
+    model_geom = model_geometry(geometry, options)
+    largest = 0.0
+    for index, section in enumerate(model_geom.sections):
+        kx, ky, kz = joint_stiffnesses(geometry, index, section.n_segments, options.stiffness_scale)
+        twist = kz if options.joint == "hinge_triple" and math.isfinite(kz) else 0.0
+        largest = max(largest, kx, ky, twist)
+    return largest
+
+
 def stable_timestep(geometry: ArmGeometry, options: ModelOptions) -> float:
     """The physics step (s): ``options.timestep`` divided by the smallest whole n with
-    k_max·(h/n)² ≤ CABLE_STEP_LIMIT for the stiffest cable (EA/L or the lumped gain)."""
+    k·(h/n)² within its verified limit for the stiffest cable (EA/L or the lumped gain,
+    CABLE_STEP_LIMIT) and the stiffest flexure joint (JOINT_STEP_LIMIT)."""
     h = float(options.timestep)
-    if not options.stable_step or not options.tendons:
+    if not options.stable_step:
         return h
-    k = float(np.max(cable_stiffness(geometry, options)))
-    n = max(1, math.ceil(math.sqrt(k * h * h / CABLE_STEP_LIMIT) - 1e-9))
+    ratio = stiffest_joint(geometry, options) * h * h / JOINT_STEP_LIMIT
+    if options.tendons:
+        ratio = max(ratio, float(np.max(cable_stiffness(geometry, options))) * h * h / CABLE_STEP_LIMIT)
+    n = max(1, math.ceil(math.sqrt(ratio) - 1e-9))
     return h / n
 
 

@@ -47,10 +47,11 @@ class ModelOptions:
     # velocity term k·timestep that implicitfast treats implicitly. Without it the stiff EA/L
     # spring is unstable at the 4 ms step once a grasp pins the tip (docs/plant.md, "Tension chatter").
     cable_implicit_spring: bool = True
-    # Divide `timestep` by the smallest whole n that keeps the stiffest cable's k·h² within
-    # motors.CABLE_STEP_LIMIT (what the default task was verified to run at). Stiff cables
-    # (≥ 5e5 N/m at 4 ms) saturate and flail, and the explicit parts of the step diverge;
-    # a whole n keeps every control tick a whole number of steps. False: `timestep` as given.
+    # Divide `timestep` by the smallest whole n that keeps the stiffest cable's and the stiffest
+    # flexure joint's k·h² within motors.CABLE_STEP_LIMIT / JOINT_STEP_LIMIT (what the default
+    # task was verified to run at). Stiff cables (≥ 5e5 N/m at 4 ms) and hinges above ×8
+    # diverged at 4 ms; a whole n keeps every control tick a whole number of steps.
+    # False: `timestep` as given.
     stable_step: bool = True
     cable_damping: float = 200.0  # N·s/m, viscous damping along each cable (motor loop + guides; passive, implicit)
     grinder_mass: float = 0.08  # kg; the spindle motor sits in the pack (flexible shaft)

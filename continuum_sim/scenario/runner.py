@@ -138,7 +138,7 @@ def with_stable_step(config: ScenarioConfig) -> ScenarioConfig:
 
     from ..model.motors import stable_timestep
 
-    h = stable_timestep(model_geometry(config.arm, config.model), config.model)
+    h = stable_timestep(config.arm, config.model)  # the physical arm: the model geometry is derived inside
     if h == config.model.timestep:
         return config
     return dataclasses.replace(config, model=dataclasses.replace(config.model, timestep=h))

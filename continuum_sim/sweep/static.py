@@ -63,9 +63,13 @@ UNUSED_BY_MODEL = ("control", "simulation", "layout")
 
 # --------------------------------------------------------------------------- models
 def model_options(config: ScenarioConfig, evaluation: Evaluation) -> ModelOptions:
+    """The variant's model options at its stable step (``model.motors.stable_timestep``)."""
+    from ..model.motors import stable_timestep
+
+    options = config.model
     if isinstance(evaluation, TipDeflection) and evaluation.cables == "free":
-        return dataclasses.replace(config.model, tendons=False)
-    return config.model
+        options = dataclasses.replace(options, tendons=False)
+    return dataclasses.replace(options, timestep=stable_timestep(config.arm, options))
 
 
 def tool_of(evaluation: Evaluation) -> str:
