@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from .jit import jit
+from .jit import jit_in_place
 
 _KERNELS: dict[str, Any] = {}
 
@@ -111,19 +111,8 @@ def _engage(
     """(voxels of material inside the cutter, Σ a·I_cc, Σ a·I_cs, Σ a·I_c, mean a) with a the
     engaged depth at the probe angles (the sums only while ``feeding``, else 0)."""
     nx, ny, nz = material.shape
-    i0, i1 = _index_range(lo[0], h[0], nx, cx - r, cx + r)
-    j0, j1 = _index_range(lo[1], h[1], ny, cy - r, cy + r)
-    k0, k1 = _index_range(lo[2], h[2], nz, z0, z1)
-    rr = r * r
-    n_inside = 0
-    for i in range(i0, i1):
-        dx = xc[i] - cx
-        for j in range(j0, j1):
-            dy = yc[j] - cy
-            if dx * dx + dy * dy <= rr:
-                for k in range(k0, k1):
-                    if material[i, j, k] and zc[k] >= z0 and zc[k] <= z1:
-                        n_inside += 1
+    # Counting only: ``cut`` and ``removed_at`` are never touched, so any arrays of the right rank do.
+    n_inside = _inside(material, material, material[:, :, 0], xc, yc, zc, lo, h, cx, cy, z0, z1, r, False, 0.0)
     if not feeding:
         return n_inside, 0.0, 0.0, 0.0, 0.0
     weights = np.empty(nz)
@@ -165,18 +154,18 @@ def _engage(
     return (n_inside, np.dot(depth, i_cc), np.dot(depth, i_cs), np.dot(depth, i_c), _pairwise_sum(depth) / m)
 
 
-def _remove(
+def _inside(
     material: np.ndarray, cut: np.ndarray, removed_at: np.ndarray, xc: np.ndarray, yc: np.ndarray, zc: np.ndarray,
-    lo: np.ndarray, h: np.ndarray, cx: float, cy: float, z0: float, z1: float, r: float, time: float,
+    lo: np.ndarray, h: np.ndarray, cx: float, cy: float, z0: float, z1: float, r: float, remove: bool, time: float,
 ) -> int:
-    """Remove the material inside the cutter (``cut`` marks it; a column's first removal time
-    goes to ``removed_at``); returns the voxels removed."""
+    """The voxels of material inside the cutter: counted, or (``remove``) removed — ``cut``
+    marks them and a column's first removal time goes to ``removed_at``. Returns their number."""
     nx, ny, nz = material.shape
     i0, i1 = _index_range(lo[0], h[0], nx, cx - r, cx + r)
     j0, j1 = _index_range(lo[1], h[1], ny, cy - r, cy + r)
     k0, k1 = _index_range(lo[2], h[2], nz, z0, z1)
     rr = r * r
-    removed = 0
+    count = 0
     for i in range(i0, i1):
         dx = xc[i] - cx
         for j in range(j0, j1):
@@ -185,23 +174,28 @@ def _remove(
                 hit = False
                 for k in range(k0, k1):
                     if material[i, j, k] and zc[k] >= z0 and zc[k] <= z1:
-                        material[i, j, k] = False
-                        cut[i, j, k] = True
-                        hit = True
-                        removed += 1
+                        count += 1
+                        if remove:
+                            material[i, j, k] = False
+                            cut[i, j, k] = True
+                            hit = True
                 if hit and math.isnan(removed_at[i, j]):
                     removed_at[i, j] = time
-    return removed
+    return count
+
+
+def _remove(
+    material: np.ndarray, cut: np.ndarray, removed_at: np.ndarray, xc: np.ndarray, yc: np.ndarray, zc: np.ndarray,
+    lo: np.ndarray, h: np.ndarray, cx: float, cy: float, z0: float, z1: float, r: float, time: float,
+) -> int:
+    """Remove the material inside the cutter (``cut`` marks it; a column's first removal time
+    goes to ``removed_at``); returns the voxels removed."""
+    return _inside(material, cut, removed_at, xc, yc, zc, lo, h, cx, cy, z0, z1, r, True, time)
 
 
 def kernels() -> dict[str, Any]:
     """The compiled kernels ``engage`` and ``remove`` (compiled, or loaded from numba's cache, on first use)."""
     if not _KERNELS:
-        global _index_range, _block_sum, _pairwise_sum, _engage, _remove
-        _index_range = jit(_index_range)
-        _block_sum = jit(_block_sum)
-        _pairwise_sum = jit(_pairwise_sum)
-        _engage = jit(_engage)
-        _remove = jit(_remove)
+        jit_in_place(globals(), ("_index_range", "_block_sum", "_pairwise_sum", "_inside", "_engage", "_remove"))
         _KERNELS.update(engage=_engage, remove=_remove)
     return _KERNELS

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from ..configio import require_range
-from .jit import jit, sigint_deferred
+from .jit import jit_in_place, sigint_deferred
 
 # *Assumed* default μ: a steel rope sliding in the holes of 3D-printed polymer disks (the
 # prototype's disks are printed, Table 1 of the paper). Dry steel on nylon/PLA/PTFE lies
@@ -85,8 +85,6 @@ class CableFrictionConfig:
 
 
 # ------------------------------------------------------------------------ numba kernels
-_jit = jit
-
 
 def _axis_angle(axis: np.ndarray, angle: float, R: np.ndarray) -> None:
     """R = rotation of ``angle`` about the unit ``axis`` (Rodrigues)."""
@@ -300,13 +298,8 @@ def kernels() -> dict[str, Any]:
     rebound to their jitted versions so the kernels call them in nopython mode.
     """
     if not _KERNELS:
-        global _axis_angle, _quat_mat, _matmul3, _segment_rotations, _cable_pieces, _friction_forces
-        _axis_angle = _jit(_axis_angle)
-        _quat_mat = _jit(_quat_mat)
-        _matmul3 = _jit(_matmul3)
-        _segment_rotations = _jit(_segment_rotations)
-        _cable_pieces = _jit(_cable_pieces)
-        _friction_forces = _jit(_friction_forces)
+        jit_in_place(globals(), ("_axis_angle", "_quat_mat", "_matmul3", "_segment_rotations", "_cable_pieces",
+                                 "_friction_forces"))
         _KERNELS.update(cable_pieces=_cable_pieces, friction_forces=_friction_forces)
     return _KERNELS
 

@@ -14,6 +14,13 @@ def jit(fn: Callable[..., Any]) -> Any:
     return njit(cache=True, fastmath=False, nogil=True)(fn)
 
 
+def jit_in_place(namespace: dict[str, Any], names: tuple[str, ...]) -> None:
+    """Rebind each of ``names`` in a module's ``namespace`` (its ``globals()``) to its jitted
+    version, in order, so kernels that call those helpers call the compiled ones in nopython mode."""
+    for name in names:
+        namespace[name] = jit(namespace[name])
+
+
 @contextmanager
 def sigint_deferred() -> Iterator[None]:
     """While the block runs (a numba compile, or a load from its cache), Ctrl-C only records
