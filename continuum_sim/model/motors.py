@@ -158,6 +158,43 @@ def arm_motor_ratings(options: ModelOptions) -> MotorRatings:
     return MotorRatings(options.motor_max_speed, options.cable_max_force, options.motor_kp, options.motor_ki)
 
 
+def _write_cable_stiffness(model, actuators: Array, k: Array, taut: Array, velocity_gain, h) -> None:
+    """The cable actuators' spring k (gain and length bias) and velocity gain: velocity_gain + k·h
+    on taut cables (the spring's backward-Euler term), velocity_gain on slack ones."""
+    model.actuator_gainprm[actuators, 0] = k
+    model.actuator_biasprm[actuators, 1] = -k
+    model.actuator_biasprm[actuators, 2] = -(velocity_gain + np.where(taut, k * h, 0.0))
+
+
+def _motor_step(x: Array, integral: Array, set_point: Array, s: Array, length: Array, k: Array, droop, kp, ki,
+                max_speed, h, dt: float) -> tuple[Array, Array, Array]:
+    """One tick of the motors' PI encoder loops: (new position, new integral, actuator control).
+
+    Ratings may be scalars (one bank) or per-motor arrays (``MotorDrive``'s fused update):
+    the same elementwise operations either way, so the results are bit-identical.
+    """
+    v_ff = (s - set_point) / dt
+    taut = length > x  # the cable pulls on the motor: its droop term acts
+    dk = np.where(taut, droop * k, 0.0)
+    # Backward Euler in (x, ∫e): x' = x + dt·(v_cmd + droop·k·(l − x')),
+    # v_cmd = v_ff + kp·(s − x') + ki·(∫e + dt·(s − x')).
+    a = kp + ki * dt
+    x_new = (x + dt * (v_ff + a * s + ki * integral + dk * length)) / (1.0 + dt * (a + dk))
+    v_cmd = v_ff + a * (s - x_new) + ki * integral
+    saturated = np.abs(v_cmd) > max_speed
+    if np.any(saturated):
+        # Voltage at its limit: the command is ±v_max and the integrator holds (anti-windup).
+        v_sat = np.clip(v_cmd, -max_speed, max_speed)
+        x_sat = (x + dt * (v_sat + dk * length)) / (1.0 + dt * dk)
+        x_new = np.where(saturated, x_sat, x_new)
+    integral = np.where(saturated, integral, integral + dt * (s - x_new))
+    # Backward Euler on the spring uses the motor's position at the end of the step,
+    # x + h·ẋ: with the velocity term −k·h·l̇ the implicit part acts on the stretch rate
+    # ẋ − l̇ only, so a cable that follows its motor is not dragged.
+    ctrl = 0.5 * (x + x_new) + h * (x_new - x) / dt
+    return x_new, integral, ctrl
+
+
 class MotorBank:
     """The motors of a set of cable actuators: motor positions, PI state, limits.
 
@@ -218,14 +255,13 @@ class MotorBank:
         self._update_stiffness(data)
         data.ctrl[self.actuators] = self.position
 
-    def _update_stiffness(self, data) -> None:
-        if self.ea is None or self.lead is None:
-            return
+    def _update_stiffness(self, data) -> Array:
+        """Write the current cable stiffness into the actuators (elastic model); return it."""
         k = self.stiffness(data)
-        self.model.actuator_gainprm[self.actuators, 0] = k
-        self.model.actuator_biasprm[self.actuators, 1] = -k
-        taut = data.ten_length[self.tendons] > self.position
-        self.model.actuator_biasprm[self.actuators, 2] = -(self.velocity_gain + np.where(taut, k * self.implicit_step, 0.0))
+        if self.ea is not None and self.lead is not None:
+            taut = data.ten_length[self.tendons] > self.position
+            _write_cable_stiffness(self.model, self.actuators, k, taut, self.velocity_gain, self.implicit_step)
+        return k
 
     def command(self, data, set_points: Array, dt: float) -> None:
         """Advance every motor by one tick of ``dt`` toward ``set_points`` and write the actuators' controls."""
@@ -242,34 +278,12 @@ class MotorBank:
             self.set_point = s.copy()
             self.position = s.copy()
             return
-        self._update_stiffness(data)
+        k = self._update_stiffness(data)
         r = self.ratings
-        x, integral = self.position, self.integral
-        v_ff = (s - self.set_point) / dt
-        length = data.ten_length[self.tendons]
-        k = self.stiffness(data)
-        taut = length > x  # the cable pulls on the motor: its droop term acts
-        dk = np.where(taut, r.droop * k, 0.0)
-        # Backward Euler in (x, ∫e): x' = x + dt·(v_cmd + droop·k·(l − x')),
-        # v_cmd = v_ff + kp·(s − x') + ki·(∫e + dt·(s − x')).
-        a = r.kp + r.ki * dt
-        x_new = (x + dt * (v_ff + a * s + r.ki * integral + dk * length)) / (1.0 + dt * (a + dk))
-        v_cmd = v_ff + a * (s - x_new) + r.ki * integral
-        saturated = np.abs(v_cmd) > r.max_speed
-        if np.any(saturated):
-            # Voltage at its limit: the command is ±v_max and the integrator holds (anti-windup).
-            v_sat = np.clip(v_cmd, -r.max_speed, r.max_speed)
-            x_sat = (x + dt * (v_sat + dk * length)) / (1.0 + dt * dk)
-            x_new = np.where(saturated, x_sat, x_new)
-        integral = np.where(saturated, integral, integral + dt * (s - x_new))
-        x_mean = 0.5 * (x + x_new)
-        self.position = x_new
-        self.integral = integral
-        self.set_point = s.copy()
-        # Backward Euler on the spring uses the motor's position at the end of the step,
-        # x + h·ẋ: with the velocity term −k·h·l̇ the implicit part acts on the stretch rate
-        # ẋ − l̇ only, so a cable that follows its motor is not dragged.
-        data.ctrl[self.actuators] = x_mean + self.implicit_step * (x_new - x) / dt
+        x_new, integral, ctrl = _motor_step(self.position, self.integral, self.set_point, s, data.ten_length[self.tendons],
+                                            k, r.droop, r.kp, r.ki, r.max_speed, self.implicit_step, dt)
+        self.position, self.integral, self.set_point = x_new, integral, s.copy()
+        data.ctrl[self.actuators] = ctrl
 
 
 def arm_motor_bank(model, actuators: Array, tendons: Array, options: ModelOptions) -> MotorBank:
@@ -337,7 +351,7 @@ class MotorDrive:
             hc=per(lambda b: b.implicit_step)[:nc],
             droop=per(lambda b: b.ratings.droop), kp=per(lambda b: b.ratings.kp), ki=per(lambda b: b.ratings.ki),
             vmax=per(lambda b: b.ratings.max_speed),
-            gainprm=model.actuator_gainprm, biasprm=model.actuator_biasprm,
+            model=model,
         )
 
     def __call__(self, sim, commands) -> None:
@@ -373,26 +387,12 @@ class MotorDrive:
         length = data.ten_length[f["ten"]]
         k = np.empty(len(x))
         k[:nc] = f["ea"] / (f["lead"] + length[:nc])
-        k[nc:] = f["gainprm"][f["grip_act"], 0]
-        taut = length > x
+        k[nc:] = f["model"].actuator_gainprm[f["grip_act"], 0]
         kc = k[:nc]
-        act = f["cable_act"]
-        f["gainprm"][act, 0] = kc
-        f["biasprm"][act, 1] = -kc
-        f["biasprm"][act, 2] = -(f["vg"] + np.where(taut[:nc], kc * f["hc"], 0.0))
-        kp, ki, vmax = f["kp"], f["ki"], f["vmax"]
-        v_ff = (s - set_point) / dt
-        dk = np.where(taut, f["droop"] * k, 0.0)
-        a = kp + ki * dt
-        x_new = (x + dt * (v_ff + a * s + ki * integral + dk * length)) / (1.0 + dt * (a + dk))
-        v_cmd = v_ff + a * (s - x_new) + ki * integral
-        saturated = np.abs(v_cmd) > vmax
-        if saturated.any():
-            v_sat = np.clip(v_cmd, -vmax, vmax)
-            x_sat = (x + dt * (v_sat + dk * length)) / (1.0 + dt * dk)
-            x_new = np.where(saturated, x_sat, x_new)
-        integral = np.where(saturated, integral, integral + dt * (s - x_new))
-        data.ctrl[f["act"]] = 0.5 * (x + x_new) + f["h"] * (x_new - x) / dt
+        _write_cable_stiffness(f["model"], f["cable_act"], kc, (length > x)[:nc], f["vg"], f["hc"])
+        x_new, integral, ctrl = _motor_step(x, integral, set_point, s, length, k, f["droop"], f["kp"], f["ki"], f["vmax"],
+                                            f["h"], dt)
+        data.ctrl[f["act"]] = ctrl
         self._state = (x_new, integral, s)
         out = []
         for b, sl in zip(banks, f["slices"], strict=True):
