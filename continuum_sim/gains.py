@@ -165,15 +165,16 @@ def _arm_modes_cached(
     force(zero, zero)
     M = np.zeros((nv, nv))
     mujoco.mj_fullM(model, data, M)
-    # Generalised symmetric eigenproblem K φ = ω² M φ via the Cholesky factor of M.
-    Li = np.linalg.inv(np.linalg.cholesky(M))
-    eig, vectors = np.linalg.eigh(Li @ (0.5 * (K + K.T)) @ Li.T)
+    # Generalised symmetric eigenproblem K φ = ω² M φ (scipy returns M-normalised φ).
+    from scipy.linalg import eigh
+
+    eig, vectors = eigh(0.5 * (K + K.T), M)
     positive = np.flatnonzero(eig > 0.0)
     omega1, modal = 0.0, 0.0
     if positive.size:
         i = positive[np.argmin(eig[positive])]
         omega1 = float(math.sqrt(eig[i]))
-        phi = Li.T @ vectors[:, i]  # M-normalised mode shape
+        phi = vectors[:, i]  # M-normalised mode shape
         modal = 0.5 * float(phi @ D @ phi) / float(phi @ M @ phi)
     state = np.block([[np.zeros((nv, nv)), np.eye(nv)], [-np.linalg.solve(M, K), -np.linalg.solve(M, D)]])
     decay = -np.linalg.eigvals(state).real
