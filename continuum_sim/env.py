@@ -76,7 +76,7 @@ class SampleRemovalEnv(gym.Env[dict[str, Any], NDArray[np.float32]]):
         render_mode: str | None = None,
     ) -> None:
         from .model.options import model_geometry
-        from .scenario.runner import build_scene_model, plan_extent, with_stable_step
+        from .scenario.runner import build_run_model, plan_extent, with_stable_step
         from .toolpath import plan_task
 
         self.config = with_stable_step(ScenarioConfig.default() if config is None else config)
@@ -97,7 +97,7 @@ class SampleRemovalEnv(gym.Env[dict[str, Any], NDArray[np.float32]]):
         # A run of the whole task succeeds with the sample cut free and held; one limited to
         # earlier stages (tests, curricula) succeeds by reaching their end without a failure.
         self.whole_task = self.stages_run[-1] == self.plan.stage_names[-1]
-        _, self.model = build_scene_model(cfg)
+        _, self.model, self.render_model = build_run_model(cfg)  # render: the spatial twin draws the cables
         n = 2 * self.geometry.n_sections
         c = 3 * self.geometry.n_sections
         self.action_space = spaces.Box(-1.0, 1.0, (2, n), dtype=np.float32)
@@ -129,7 +129,10 @@ class SampleRemovalEnv(gym.Env[dict[str, Any], NDArray[np.float32]]):
         if seed is not None:  # the seed drives the (optional) sensor noise, as simulation.seed does for a run
             cfg = dataclasses.replace(cfg, simulation=dataclasses.replace(cfg.simulation, seed=int(seed)))
         if self.sim is not None:
+            from .model.cable_path import release_data
+
             self.loop.close()
+            release_data(self.sim.data)
         self.controller = CorrectedController(self.base_controller)
         self.sim = make_simulation(cfg, self.plan, self.model, self.controller)
         self.cutter = CutterObserver(self.sim)
@@ -187,13 +190,21 @@ class SampleRemovalEnv(gym.Env[dict[str, Any], NDArray[np.float32]]):
         import mujoco
 
         if self._renderer is None:
-            self._renderer = mujoco.Renderer(self.model, 240, 320)
-        self._renderer.update_scene(self.sim.data, camera=self.config.simulation.cameras[0])
+            self._renderer = mujoco.Renderer(self.render_model, 240, 320)
+            self._render_data = mujoco.MjData(self.render_model)
+        data = self._render_data
+        data.qpos[:], data.mocap_pos[:], data.mocap_quat[:] = self.sim.data.qpos, self.sim.data.mocap_pos, self.sim.data.mocap_quat
+        self.render_model.geom_rgba[:] = self.model.geom_rgba  # colours the run changed (cut material)
+        mujoco.mj_forward(self.render_model, data)
+        self._renderer.update_scene(data, camera=self.config.simulation.cameras[0])
         return self._renderer.render()
 
     def close(self) -> None:
         if self.sim is not None:
+            from .model.cable_path import release_data
+
             self.loop.close()
+            release_data(self.sim.data)
             self.sim = None
         if self._renderer is not None:
             self._renderer.close()

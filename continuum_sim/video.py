@@ -260,10 +260,15 @@ class VideoRecorder:
         )
 
     def render_frame(self, data: Any) -> np.ndarray:
-        """The tiled RGB frame of the current state (in-process renderer)."""
+        """The tiled RGB frame of the current state (in-process renderer).
+
+        Drawn from the state copied into the renderer's own data, as the workers do: ``data``
+        may belong to another model with the same state layout (the native-cable twin).
+        """
         if self._renderer is None:
             raise RuntimeError("render_frame needs the in-process renderer (workers=0)")
-        return self._renderer.render_data(data)
+        self._last_rgba = None
+        return self._renderer.render_state(self._snapshot(data))
 
     def maybe_capture(self, data: Any) -> bool:
         """Take a frame if simulated time has reached the next frame time."""

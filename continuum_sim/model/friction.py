@@ -213,7 +213,7 @@ def _friction_forces(
     piece_seg, piece_parent, piece_child, cable_start, cable_end, tendon_ids,
     act_ids, act_owner, actuator_force, ten_stiffness, ten_damping, ten_spring, ten_length, ten_velocity,
     mu, presliding, base_hole, z, s_prev, initialised, tension,
-    seg_R, seg_w, length, direction, grad, piece_tension, wrap, qfrc,
+    seg_R, seg_w, length, direction, grad, piece_tension, wrap, qfrc, compute_pieces,
 ):  # fmt: skip
     """Update the stick/slip states and add the capstan correction to ``qfrc``.
 
@@ -222,6 +222,8 @@ def _friction_forces(
     damper. Hole j of a cable (j = 0: base plate, j ≥ 1: the disk between piece j and j+1)
     has wrap β_j, sliding coordinate s_j = Σ_{i>j} l_i (the cable length beyond it) and
     state z_j; piece tensions T_1 = T·e^(μβ_0 z_0), T_{j+1} = T_j·e^(μβ_j z_j).
+    ``compute_pieces`` False: the pieces (length, direction, grad) of this qpos are already
+    there (the native cable path evaluated them in the same callback).
     """
     for c in range(cable_start.shape[0]):
         t = tendon_ids[c]
@@ -234,10 +236,11 @@ def _friction_forces(
         tension[c] = ten_stiffness[c] * stretch + ten_damping[c] * ten_velocity[t]
     for j in range(act_ids.shape[0]):
         tension[act_owner[j]] -= actuator_force[act_ids[j]]
-    _cable_pieces(
-        qpos, seg_ball, seg_njnt, seg_qadr, seg_qref, seg_axes, seg_bpos, seg_bmat, seg_jpos,
-        piece_seg, piece_parent, piece_child, seg_R, seg_w, length, direction, grad,
-    )  # fmt: skip
+    if compute_pieces:
+        _cable_pieces(
+            qpos, seg_ball, seg_njnt, seg_qadr, seg_qref, seg_axes, seg_bpos, seg_bmat, seg_jpos,
+            piece_seg, piece_parent, piece_child, seg_R, seg_w, length, direction, grad,
+        )  # fmt: skip
     for c in range(cable_start.shape[0]):
         a, b = cable_start[c], cable_end[c]
         # wraps: hole j sits before piece a+j
@@ -531,11 +534,15 @@ class CableFriction:
         data,
         config: CableFrictionConfig,
         tendon_ids: np.ndarray | None = None,
+        kernel: CableKernel | None = None,
     ) -> None:
         import mujoco
 
         self.config = config
-        self.kernel = CableKernel(model, tendon_ids)
+        # ``kernel``: the native cable path's (routing from the spatial twin; it evaluates the
+        # pieces just before this hook in the same callback, so they are not computed twice).
+        self.kernel = kernel if kernel is not None else CableKernel(model, tendon_ids)
+        self._compute_pieces = kernel is None
         r = self.kernel.routing
         n_cables, n_pieces = len(r.cable_start), r.n_pieces
         self.z = np.zeros(n_pieces)  # stick/slip state of the hole before each piece
@@ -583,6 +590,7 @@ class CableFriction:
             self._act_ids, self._act_owner, actuator_force, self._ten_k, self._ten_b, self._ten_spring,
             ten_length, ten_velocity, cfg.mu, cfg.presliding, cfg.base_hole, self.z, self.s_prev, self.initialised,
             self.tension, k.seg_R, k.seg_w, k.length, k.direction, k.grad, self.piece_tension, self.wrap, qfrc_passive,
+            self._compute_pieces,
         )  # fmt: skip
 
     def anchor_ratio(self) -> np.ndarray:
@@ -611,8 +619,8 @@ class CableFriction:
     def uninstall(self) -> None:
         """Stop acting on this data (the global callback stays, acting on the others)."""
         data = self._data_ref()
-        if data is not None and _REGISTRY.get(data._address) is self:
-            _unregister(data._address)
+        if data is not None:
+            _unregister(data._address, self)
 
     def check(self) -> None:
         """Raise the first error the passive callback met (a C callback cannot raise itself)."""
@@ -629,7 +637,8 @@ class CableFriction:
 # calls whatever callback was installed before it first. It is a ctypes C callback taking
 # the raw pointers: MuJoCo also runs the passive stage on internal mjData while compiling
 # a model, which a plain Python callback cannot receive (the bindings raise there).
-_REGISTRY: dict[int, CableFriction] = {}
+# Per data address, the hooks run in order (the native cable path first, then friction).
+_REGISTRY: dict[int, list[Any]] = {}
 _C_CALLBACK: list[Any] = []
 # A signal handler (Ctrl-C, SIGTERM) may run inside the callback's Python code; ctypes would
 # swallow its exception. The unraisable hook keeps it here and raise_pending() re-raises it
@@ -654,19 +663,45 @@ def raise_pending() -> None:
 
 
 def _passive_callback(model_ptr: int | None, data_ptr: int | None) -> None:
-    handle = _REGISTRY.get(data_ptr or 0)
-    if handle is None:
+    hooks = _REGISTRY.get(data_ptr or 0)
+    if hooks is None:
+        if model_ptr in _native_models() and not _PENDING:
+            _PENDING.append(RuntimeError(
+                "a model with native cables was stepped with an MjData not made by NativeCables.make_data"
+                " (its cables would have zero length)"))
         return
-    model, data = handle._model_ref(), handle._data_ref()
-    if model is None or data is None or model._address != model_ptr:
-        return
-    try:
-        handle.apply(model, data)
-    except BaseException as exc:  # noqa: BLE001 - a C callback cannot raise: kept for CableFriction.check()
-        # Ctrl-C/SIGTERM land here too when the signal arrives inside the callback: kept and
-        # re-raised after mj_step (ctypes would print it and drop it; the run then looked diverged).
-        if handle.error is None:
-            handle.error = exc
+    for handle in hooks:
+        model, data = handle._model_ref(), handle._data_ref()
+        if model is None or data is None or model._address != model_ptr:
+            return
+        try:
+            handle.apply(model, data)
+        except BaseException as exc:  # noqa: BLE001 - a C callback cannot raise: kept for CableFriction.check()
+            # Ctrl-C/SIGTERM land here too when the signal arrives inside the callback: kept and
+            # re-raised after mj_step (ctypes would print it and drop it; the run then looked diverged).
+            if handle.error is None:
+                handle.error = exc
+            return
+
+
+def _native_models() -> dict[int, Any]:
+    from .cable_path import _NATIVE_MODELS
+
+    return _NATIVE_MODELS
+
+
+def register_passive(data: Any, handle: Any, first: bool = False) -> None:
+    """Run ``handle.apply(model, data)`` in the passive stage of every step of ``data``.
+
+    ``first``: before the hooks already registered (the native cable path must write the
+    cables' geometry before friction reads it). Dropped when ``data`` is freed.
+    """
+    _ensure_callback()
+    key = data._address
+    hooks = _REGISTRY.setdefault(key, [])
+    if not hooks:
+        weakref.finalize(data, _unregister, key, None)
+    hooks.insert(0 if first else len(hooks), handle)
 
 
 def _ensure_callback() -> None:
@@ -689,9 +724,15 @@ def _ensure_callback() -> None:
     mujoco.set_mjcb_passive(_C_CALLBACK[0])
 
 
-def _unregister(key: int) -> None:
-    """Drop one registration; with none left, hand the process-global callback back."""
-    _REGISTRY.pop(key, None)
+def _unregister(key: int, handle: Any) -> None:
+    """Drop ``handle`` (None: every hook) of the data at ``key``; with none left, hand the global callback back."""
+    hooks = _REGISTRY.get(key, [])
+    if handle is None:
+        hooks.clear()
+    elif handle in hooks:
+        hooks.remove(handle)
+    if not hooks:
+        _REGISTRY.pop(key, None)
     if not _REGISTRY and _C_CALLBACK:
         import mujoco
 
@@ -699,7 +740,8 @@ def _unregister(key: int) -> None:
             mujoco.set_mjcb_passive(None)
 
 
-def _compile_outside_the_callback(model, data, config: CableFrictionConfig, tendon_ids: np.ndarray | None) -> None:
+def _compile_outside_the_callback(model, data, config: CableFrictionConfig, tendon_ids: np.ndarray | None,
+                                  kernel: CableKernel | None) -> None:
     """Run the kernels once on a scratch copy of ``data`` so numba compiles (or loads its cache) here.
 
     Compiling inside the ctypes passive callback takes seconds on a cold cache, and a Ctrl-C
@@ -711,23 +753,23 @@ def _compile_outside_the_callback(model, data, config: CableFrictionConfig, tend
     with sigint_deferred():
         scratch = mujoco.MjData(model)
         mujoco.mj_copyData(scratch, model, data)
-        CableFriction(model, scratch, config, tendon_ids).apply(model, scratch)
+        CableFriction(model, scratch, config, tendon_ids, kernel).apply(model, scratch)
 
 
 def install_cable_friction(
-    model, data, config: CableFrictionConfig, tendon_ids: np.ndarray | None = None
+    model, data, config: CableFrictionConfig, tendon_ids: np.ndarray | None = None,
+    kernel: CableKernel | None = None,
 ) -> CableFriction:
     """Attach cable friction to ``data`` of ``model``; returns its handle.
 
     With μ = 0 nothing is registered (the model runs exactly as before) and the handle
     reports anchor ratios of 1. The stick/slip state starts neutral (z = 0) at the first
     evaluation; it lives in the handle, keyed to this ``data`` (dropped when it is freed).
+    ``kernel``: a native-cable model's ``NativeCables.kernel`` (its routing; it evaluates
+    the pieces before friction in the same callback).
     """
-    handle = CableFriction(model, data, config, tendon_ids)
+    handle = CableFriction(model, data, config, tendon_ids, kernel)
     if handle.active:
-        _compile_outside_the_callback(model, data, config, tendon_ids)
-        _ensure_callback()
-        key = data._address
-        _REGISTRY[key] = handle
-        weakref.finalize(data, _unregister, key)
+        _compile_outside_the_callback(model, data, config, tendon_ids, kernel)
+        register_passive(data, handle)
     return handle

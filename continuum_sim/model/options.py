@@ -61,6 +61,11 @@ class ModelOptions:
     jacobian: Literal["auto", "dense", "sparse"] = "auto"  # MuJoCo's constraint Jacobian storage
     impratio: float = 100.0  # friction-to-normal impedance ratio (elliptic cones): high = little frictional creep
     tendons: bool = True  # False: joints only (for benchmarks and pure-beam tests)
+    # How a scenario run evaluates the cables (model/cable_path.py): "native" = fixed tendons
+    # whose exact lengths and Jacobians a compiled kernel writes in the passive stage (the
+    # spatial tendons' numbers to ~1e-15 m, a third less CPU per step); "spatial" = MuJoCo's
+    # own spatial tendons (the plain path; what models/ holds and the video draws).
+    cable_path: Literal["native", "spatial"] = "native"
     # Friction of the cables in the disk holes: capstan loss with stick/slip (model/friction.py,
     # docs/friction.md); mu = 0 installs nothing.
     cable_friction: CableFrictionConfig = field(default_factory=CableFrictionConfig)
@@ -90,6 +95,8 @@ class ModelOptions:
         require_range("impratio", self.impratio, 1.0, 1000.0, low_inclusive=True)
         if self.jacobian not in ("auto", "dense", "sparse"):
             raise ConfigError("jacobian", f"must be one of auto, dense, sparse (got {self.jacobian!r})")
+        if self.cable_path not in ("native", "spatial"):
+            raise ConfigError("cable_path", f"must be 'native' or 'spatial' (got {self.cable_path!r})")
         if self.integrator not in ("implicitfast", "implicit", "Euler", "RK4"):
             raise ConfigError("integrator", f"must be one of implicitfast, implicit, Euler, RK4 (got {self.integrator!r})")
 

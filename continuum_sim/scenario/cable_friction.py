@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from ..model.cable_path import native_cables
 from ..model.friction import CableFriction, CableFrictionConfig, install_cable_friction, raise_pending
 from .simulate import Observer, Simulation
 
@@ -30,7 +31,9 @@ class CableFrictionObserver(Observer):
     def start(self, sim: Simulation) -> None:
         h = sim.handles
         tendons = np.concatenate([np.asarray(h.cable_tendons[arm], dtype=np.int64) for arm in h.arms])
-        self.handle = install_cable_friction(sim.model, sim.data, self.config, tendons)
+        native = native_cables(sim.model)  # its kernel evaluates the pieces first in the same callback
+        self.handle = install_cable_friction(sim.model, sim.data, self.config, None if native else tendons,
+                                             None if native is None else native.kernel)
         index = {int(t): i for i, t in enumerate(self.handle.kernel.routing.tendon_ids)}
         self.columns = {arm: np.array([index[int(t)] for t in h.cable_tendons[arm]]) for arm in h.arms}
         self.rows = {arm: [] for arm in h.arms}

@@ -1,7 +1,8 @@
 """Run the sample-removal scenario as a pipeline: plan → build → simulate → measure → write.
 
 ``run_scenario`` ties the stages together: ``plan_task`` refuses an unreachable task
-before anything is written; ``build_scene_model`` compiles the scene; ``simulate``
+before anything is written; ``build_run_model`` compiles the scene (with the native cable
+path, ``model.cable_path``, and its spatial twin for the video); ``simulate``
 (``scenario.simulate``) drives the controller tick by tick with the observers (kerf cutter,
 recorder, health check, video, progress bar, and any the caller adds); the recorder's rows
 become a typed ``Trajectory``; ``compute_metrics`` is a pure function of it; ``write_run``
@@ -24,6 +25,7 @@ from .. import kinematics as kin
 from ..configio import atomic_write_text
 from ..controllers import ControlContext, Controller, controller_spec, load_controller
 from ..limits import check_run_length, check_scenario
+from ..model.cable_path import release_data
 from ..model.handles import SceneHandles
 from ..model.motors import MotorDrive
 from ..model.options import model_geometry
@@ -75,7 +77,7 @@ def run_scenario(
     clock.lap("plan")
     stages_run, end_time = plan_extent(plan, stages)
     check_run_length(config, end_time)  # and before building or writing anything: steps per run
-    root, model = build_scene_model(config)
+    root, model, render_model = build_run_model(config)
     if out is not None:
         start_run_dir(out, config, root)
     sim = make_simulation(config, plan, model, controller or load_controller(controller_spec(config)))
@@ -85,11 +87,14 @@ def run_scenario(
     friction = CableFrictionObserver(config.model.cable_friction, recorder.every)  # acts inside mj_step
     hooks: list[Observer] = [cutter, recorder, friction, *observers, HealthCheck()]
     if video and out is not None:
-        hooks.append(VideoObserver(sim, out / "video.mp4", config.simulation))
+        hooks.append(VideoObserver(sim, out / "video.mp4", config.simulation, model=render_model))
     if progress:
         hooks.append(ProgressObserver(end_time))
     clock.lap("model_build_and_setup")
-    result = simulate(sim, int(np.ceil(end_time / sim.control_period)), hooks)
+    try:
+        result = simulate(sim, int(np.ceil(end_time / sim.control_period)), hooks)
+    finally:
+        release_data(sim.data)  # the native cable hook (the process-global callback goes back when none is left)
     clock.lap("control_records_video")
     clock.laps["physics_mj_step"] = result.physics_seconds  # inside mj_step: what the run costs if all else were free
     clock.laps["control_records_video"] -= result.physics_seconds
@@ -152,10 +157,31 @@ def build_scene_model(config: ScenarioConfig) -> tuple[Any, mujoco.MjModel]:
     return root, mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
 
 
+def build_run_model(config: ScenarioConfig) -> tuple[Any, mujoco.MjModel, mujoco.MjModel]:
+    """(mjcf root, the model to simulate, the model to render) of the configured scene.
+
+    ``model.cable_path = "native"``: the simulated model carries the cables as fixed tendons
+    evaluated by the native kernel (``model.cable_path``), the rendered one is the scene as
+    built (spatial tendons, drawn as cables); "spatial": both are the scene as built. Ball
+    joints keep the spatial path (a fixed tendon spans scalar joints only).
+    """
+    if config.model.cable_path == "spatial" or not config.model.tendons or config.model.joint == "ball":
+        root, model = build_scene_model(config)
+        return root, model, model
+    from ..model.cable_path import compile_native
+    from ..model.scene import build_scene
+
+    root = build_scene(config.arm, config.layout, config.model, config.scene)
+    model, spatial = compile_native(root)
+    return root, model, spatial
+
+
 def make_simulation(config: ScenarioConfig, plan: TaskPlan, model: mujoco.MjModel, controller: Controller) -> Simulation:
     """The run's state: both arms in the plan's first configuration, ids resolved, controller context."""
+    from ..model.cable_path import make_data
+
     geometry = model_geometry(config.arm, config.model)
-    data = mujoco.MjData(model)
+    data = make_data(model)  # registered with the native cable path when the model has one
     handles = SceneHandles.from_model(model, geometry, config.layout)
     for arm in handles.arms:
         set_arm_configuration(model, data, geometry, arm, plan.q(arm)[0], config.model.joint)

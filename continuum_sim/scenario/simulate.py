@@ -309,14 +309,18 @@ class Recorder(Observer):
 class VideoObserver(Observer):
     """Streams frames into ``video.mp4`` at the configured rate of simulated time."""
 
-    def __init__(self, sim: Simulation, path: Any, simulation_config: Any) -> None:
+    def __init__(self, sim: Simulation, path: Any, simulation_config: Any, model: Any = None) -> None:
+        """``model``: the model to draw (default ``sim.model``; the spatial twin of a native-cable model)."""
         from ..video import VideoRecorder
 
         c = simulation_config
-        self.video = VideoRecorder(sim.model, path, c.cameras, c.video_width, c.video_height, c.video_fps,
+        self.render_model = sim.model if model is None else model
+        self.video = VideoRecorder(self.render_model, path, c.cameras, c.video_width, c.video_height, c.video_fps,
                                    shadows=c.video_shadows)
 
     def after_tick(self, sim: Simulation) -> str | None:
+        if self.render_model is not sim.model and sim.data.time + 1e-12 >= self.video.next_time:
+            self.render_model.geom_rgba[:] = sim.model.geom_rgba  # colours the run changed (cut material)
         self.video.maybe_capture(sim.data)
         return None
 
