@@ -13,7 +13,11 @@ printed with the result.
   (simulated s / CPU s) of the whole run (plan, build, control, cutting, records,
   metrics), the time inside ``mj_step`` and the task metrics; ratios against ``default``
   and whether the task metrics are identical to it.
-* ``bare_mj_step``: plain ``mj_step`` of the same scene for the same simulated time.
+  ``plain_cable_path`` (``model.cable_path = "spatial"``, MuJoCo's own tendons) is always run
+  beside ``default`` (the native cable path): ``fast_vs_plain_cable_path`` gives their CPU
+  ratio and how far their task metrics are apart (the paths agree to round-off per step,
+  so the metrics agree to ~1e-10 relative, not bit for bit).
+* ``bare_mj_step``: plain ``mj_step`` of the same scene for the same simulated time (both paths).
 * ``video`` (``--frames N``, 0 skips it): the run's ``VideoRecorder`` (parallel render
   workers) against a bare in-process ``mujoco.Renderer`` rendering the same cameras at the
   same size and tessellation, wall time (the recorder spreads over processes).
@@ -40,14 +44,16 @@ choose_gl_backend()
 import mujoco  # noqa: E402
 
 from continuum_sim.configio import replace_path  # noqa: E402
+from continuum_sim.model.cable_path import make_data  # noqa: E402
 from continuum_sim.scenario.config import ScenarioConfig  # noqa: E402
 from continuum_sim.scenario.metrics import WALL_CLOCK_METRICS  # noqa: E402
-from continuum_sim.scenario.runner import build_scene_model, run_scenario  # noqa: E402
+from continuum_sim.scenario.runner import build_run_model, build_scene_model, run_scenario  # noqa: E402
 from continuum_sim.video import VideoRecorder  # noqa: E402
 from continuum_sim.video import _prepare_model as prepare_video_model  # noqa: E402
 
 GOAL_CPU_REAL_TIME_FACTOR = 12.0
 FLOOR_CPU_REAL_TIME_FACTOR = 10.0
+PLAIN = "plain_cable_path"  # model.cable_path = "spatial": MuJoCo's own spatial tendons
 
 
 def _task_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
@@ -69,9 +75,37 @@ def _config_variant(spec: str) -> tuple[str, ScenarioConfig]:
     return name, config
 
 
+def _leaves(value: Any, prefix: str = "") -> dict[str, Any]:
+    """Flattened metrics: dotted key -> leaf value."""
+    if isinstance(value, (dict, list, tuple)):
+        out: dict[str, Any] = {}
+        for k, v in (value.items() if isinstance(value, dict) else enumerate(value)):
+            out.update(_leaves(v, f"{prefix}{k}."))
+        return out
+    return {prefix.rstrip("."): value}
+
+
+def max_relative_difference(a: dict[str, Any], b: dict[str, Any]) -> float:
+    """Largest |x − y| / max(|y|, 1e-9) over the numeric leaves of two metric trees (inf if a
+    non-numeric leaf or the key set differs): how far two paths' task metrics are apart."""
+    la, lb = _leaves(a), _leaves(b)
+    if la.keys() != lb.keys():
+        return float("inf")
+    worst = 0.0
+    for key, x in la.items():
+        y = lb[key]
+        if isinstance(x, bool) or isinstance(y, bool) or not isinstance(x, (int, float)) or not isinstance(y, (int, float)):
+            if x != y:
+                return float("inf")
+            continue
+        if x != y:
+            worst = max(worst, abs(x - y) / max(abs(y), 1e-9))
+    return worst
+
+
 def bare_stepping(model: mujoco.MjModel, seconds: float) -> float:
     """CPU seconds of plain mj_step for ``seconds`` of simulated time (cables held)."""
-    data = mujoco.MjData(model)
+    data = make_data(model)  # registered with the native cable path when the model has one
     data.ctrl[:] = model.actuator_ctrlrange.mean(axis=1)
     mujoco.mj_forward(model, data)
     start = time.process_time()
@@ -128,7 +162,9 @@ def main() -> None:
     parser.add_argument("--out", type=Path, help="also write the JSON here")
     args = parser.parse_args()
     stages = tuple(s for s in args.stages.split(",") if s) or None
-    configs = dict([("default", ScenarioConfig.default())] + [_config_variant(spec) for spec in args.config])
+    # The plain MuJoCo path (spatial tendons) is always measured beside the default (native) one.
+    plain = _config_variant(f"{PLAIN}=model.cable_path=spatial")
+    configs = dict([("default", ScenarioConfig.default()), plain] + [_config_variant(spec) for spec in args.config])
 
     load_before = os.getloadavg()
     runs: dict[str, list[dict[str, Any]]] = {name: [] for name in configs}
@@ -153,12 +189,16 @@ def main() -> None:
             "mj_step_real_time_factor": round(sim_seconds / min(physics), 3),
             "repeat_identical": all(_task_metrics(r["metrics"]) == first for r in results),
             "task_metrics_identical_to_default": first == reference,
+            "task_metrics_max_relative_difference_vs_default": max_relative_difference(first, reference),
             "cpu_ratio_vs_default": round(min(cpu) / min(r["cpu_s"] for r in runs["default"]), 3),
+            "task_outcome_identical_to_default": results[0]["metrics"].get("task") == runs["default"][0]["metrics"].get("task"),
             "cutting_tip_error_mm": results[0]["metrics"].get("cutting_tip_error_mm"),
             "sample_detached": results[0]["metrics"].get("sample_detached"),
         }
-    _, model = build_scene_model(configs["default"])
+    _, model, _ = build_run_model(configs["default"])
     bare = bare_stepping(model, scenario["default"]["sim_seconds"])
+    _, plain_model = build_scene_model(configs["default"])
+    bare_plain = bare_stepping(plain_model, scenario["default"]["sim_seconds"])
     out: dict[str, Any] = {
         "measured": time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime()),
         "machine": {"cpus": os.cpu_count(), "load_avg_1_5_15_before": [round(x, 2) for x in load_before],
@@ -171,6 +211,12 @@ def main() -> None:
         "cpu_real_time_factor": scenario["default"]["cpu_real_time_factor"],
         "scenario": scenario,
         "bare_mj_step_cpu_real_time_factor": round(scenario["default"]["sim_seconds"] / bare, 3),
+        "bare_mj_step_plain_cable_path_cpu_real_time_factor": round(scenario["default"]["sim_seconds"] / bare_plain, 3),
+        "fast_vs_plain_cable_path": {
+            "cpu_ratio": scenario[PLAIN]["cpu_ratio_vs_default"],
+            "task_outcome_identical": scenario[PLAIN]["task_outcome_identical_to_default"],
+            "task_metrics_max_relative_difference": scenario[PLAIN]["task_metrics_max_relative_difference_vs_default"],
+        },
     }
     if args.frames > 0:
         out["video"] = video_comparison(configs["default"], args.frames)
