@@ -27,13 +27,15 @@ cutter can reach (the whole plate outside the clamped strip, sample included) at
   material by a spring-damper on the equivalent flat-face penetration (``block_*``).
 * **Spindle.** ``tools.SpindleLoop`` (PI, torque limit, stall) sets the spindle actuator;
   the cutting torque loads the spindle joint (``qfrc_applied``), so it slows under load.
-* **Detachment.** Every ``connectivity_period`` after material was removed, the grid is
-  labelled (``scipy.ndimage.label``, face connectivity); the sample comes free when the
+* **Detachment.** Every ``connectivity_period`` after material was removed, the grid's
+  face connectivity is checked (numpy path: ``scipy.ndimage.label``; native: a flood fill
+  from the held material that stops at the clamped edge); the sample comes free when the
   material under the gripper's jaws (voxels within ``grip_radius`` of the grasp point) is
   no longer connected to the clamped edge. Then the weld ``sample_weld`` is released and
   every voxel that lost its connection leaves the grid (it went with the sample).
 
-The voxel work of each step (engagement, depth sampling, removal) runs in numba kernels
+The voxel work of each step (engagement, depth sampling, removal) and the connectivity
+check run in numba kernels
 (``cutting_kernels``) unless ``FoamOptions.native`` is false; both paths give bit-identical
 results.
 
@@ -185,6 +187,7 @@ class FoamCutter:
         in_sample = (gx >= lo[0]) & (gx <= hi[0]) & (gy >= lo[1]) & (gy <= hi[1])
         near = (gx - grasp_point[0]) ** 2 + (gy - grasp_point[1]) ** 2 <= foam.grip_radius**2
         self._held_columns = in_sample & near if (in_sample & near).any() else in_sample
+        self._held_flat = np.flatnonzero(self._held_columns).astype(np.int64)  # flat (i, j) indices, native check
         band = np.zeros(grid.shape[:2], dtype=bool)  # type: ignore[assignment]
         if kerf is not None:
             # The kerf's core: the middle half of its width, so a cut up to a quarter kerf width
@@ -432,18 +435,29 @@ class FoamCutter:
         return self.check_connectivity()
 
     def check_connectivity(self) -> bool:
-        """Label the remaining material; free the sample when the held material lost the clamp."""
+        """Free the sample when the held material lost the clamp (face connectivity to i = 0).
+
+        The numpy path labels the whole grid (``scipy.ndimage.label``); the native one floods
+        from the held material towards the anchor face and stops there (a connected grid, the
+        usual case, costs a short walk), and only on detachment floods from the anchor face to
+        find what left. Both free the same voxels at the same check."""
         self.checks += 1
-        labels, _ = ndimage.label(self.grid.material)
-        anchored = np.unique(labels[0])
-        anchored = anchored[anchored > 0]
-        held = labels[self._held_columns]
-        held = held[held > 0]
-        if held.size == 0 or np.isin(held, anchored).any():
-            return False
-        loose = (labels > 0) & ~np.isin(labels, anchored)
-        self.freed_volume = float(np.count_nonzero(loose)) * self.grid.voxel_volume
-        self.grid.material[loose] = False
+        material = self.grid.material
+        if self._native is not None:
+            if self._native["held_anchored"](material, self._held_flat) != 0:
+                return False
+            self.freed_volume = float(self._native["free_loose"](material)) * self.grid.voxel_volume
+        else:
+            labels, _ = ndimage.label(material)
+            anchored = np.unique(labels[0])
+            anchored = anchored[anchored > 0]
+            held = labels[self._held_columns]
+            held = held[held > 0]
+            if held.size == 0 or np.isin(held, anchored).any():
+                return False
+            loose = (labels > 0) & ~np.isin(labels, anchored)
+            self.freed_volume = float(np.count_nonzero(loose)) * self.grid.voxel_volume
+            material[loose] = False
         self.data.eq_active[self.weld] = 0
         self.detach_time = float(self.data.time)
         self.model.geom_rgba[self._band, 3] = 0.0
@@ -479,6 +493,8 @@ def _compiled_kernels() -> dict[str, Any]:
                     0.5, 0.5, 0.0, 1.0, 0.4, 0.9, 0.8, 1.0, 0.0, True)
         k["remove"](material, np.zeros_like(material), np.full((2, 2), np.nan, np.float32), c, c, c, lo, h,
                     0.5, 0.5, 0.0, 1.0, 0.4, 0.0)
+        k["held_anchored"](material, np.array([1], np.int64))
+        k["free_loose"](material)
     return k
 
 
