@@ -53,6 +53,7 @@ def _lockstep(tools: ToolOptions | None = None, spindle=lambda t: SPEED, feed=0.
         for name in STATE_FIELDS:
             assert np.array_equal(getattr(a, name), getattr(b, name)), (d1.time, name, getattr(a, name), getattr(b, name))
         assert c1.removed_volume == c2.removed_volume and c1.detach_time == c2.detach_time
+        assert c1.cells_remaining == c2.cells_remaining
         assert np.array_equal(d1.qpos, d2.qpos) and np.array_equal(d1.qvel, d2.qvel), d1.time
         if states[0].feed_speed and states[0].depth > 0:
             counts["feeding"] += 1

@@ -278,11 +278,26 @@ def _free_loose(material: np.ndarray) -> int:
     return count
 
 
+def _columns_with_material(material: np.ndarray, columns: np.ndarray) -> int:
+    """How many of the voxel columns ``columns`` (flat (i, j) indices) hold material."""
+    ny, nz = material.shape[1], material.shape[2]
+    count = 0
+    for c in columns:
+        i, j = c // ny, c % ny
+        for k in range(nz):
+            if material[i, j, k]:
+                count += 1
+                break
+    return count
+
+
 def kernels() -> dict[str, Any]:
-    """The compiled kernels ``engage``, ``remove``, ``held_anchored`` and ``free_loose``
+    """The compiled kernels ``engage``, ``remove``, ``held_anchored``, ``free_loose`` and
+    ``columns_with_material``
     (compiled, or loaded from numba's cache, on first use)."""
     if not _KERNELS:
         jit_in_place(globals(), ("_index_range", "_block_sum", "_pairwise_sum", "_inside", "_engage", "_remove",
-                                 "_push", "_flood", "_held_anchored", "_free_loose"))
-        _KERNELS.update(engage=_engage, remove=_remove, held_anchored=_held_anchored, free_loose=_free_loose)
+                                 "_push", "_flood", "_held_anchored", "_free_loose", "_columns_with_material"))
+        _KERNELS.update(engage=_engage, remove=_remove, held_anchored=_held_anchored, free_loose=_free_loose,
+                        columns_with_material=_columns_with_material)
     return _KERNELS
