@@ -183,6 +183,9 @@ class ArmController:
         self._r = np.zeros(3)
         self._R, self._p, self._J_flat = np.zeros(9), np.zeros(3), np.zeros(6 * 2 * S)
         self._J, self._error, self._A = np.zeros((m, 2 * S)), np.zeros(m), np.zeros((m, m))
+        self._x, self._no_tensions = np.zeros(m), np.zeros(3 * S)  # placeholders for ticks that do not use them
+        self._plan, self._pos, self._mat = np.eye(4), np.zeros(3), np.eye(3)
+        self._max_correction = float(self.max_correction)
 
     def _commanded(self, q_plan) -> list[float]:
         # Scalar per section: this runs twice per arm per control tick.
@@ -240,51 +243,48 @@ class ArmController:
     def _update_compiled(
         self, q_plan: Array, tcp_plan: Array, tcp_pos: Array, tcp_mat: Array, dt: float, tensions: Array | None
     ) -> Array:
-        """``update`` after the holding logic, through the numba kernels (same numbers as the Python methods)."""
+        """``update`` after the holding logic in two numba calls around LAPACK's dposv (same numbers as the Python methods).
+
+        The set-points are computed every tick: the Python path's reuse while (w, extra) stand
+        still only saved the cable kernel, and returns the same numbers.
+        """
         k, cfg, w = self._kernels, self.config, self._w
         q = np.asarray(q_plan, dtype=float)
-        k["commanded"](q, self.correction, self.proportional, self._max_bend_array, w)
-        if cfg.mode == "closed" and dt > 0.0:
-            self._integrate_compiled(w, tcp_plan, tcp_pos, tcp_mat, dt)
-            k["commanded"](q, self.correction, self.proportional, self._max_bend_array, w)
-        self.last_command = w.tolist()
-        if cfg.mode == "closed" and tensions is not None and dt > 0.0 and cfg.min_tension > 0.0:
-            k["keep_tension"](
-                np.asarray(tensions, dtype=float), self.extra, self.cable_kp,
-                cfg.min_tension, cfg.tension_gain, cfg.max_extra_tension, dt,
-            )
-        key, extra = w.tobytes(), self.extra.tobytes()
-        if self._set_points is not None and self._set_points[0] == key and self._set_points[1] == extra:
-            return self._set_points[2].copy()
-        lengths = np.empty(len(self.offset))
-        c = self._cables
-        k["set_points"](
-            w, self._cable_segments, self._cable_halves, c._pair_section, c._pair_holes, c._gather,
-            self.offset, self.extra, self._cable_section, lengths,
-        )
-        self._set_points = (key, extra, lengths)
-        return lengths.copy()
-
-    def _integrate_compiled(self, w: Array, tcp_plan: Array, tcp_pos: Array, tcp_mat: Array, dt: float) -> None:
-        """``_integrate`` through the kernels: the system in numba, LAPACK's dposv, the step in numba."""
-        k, cfg = self._kernels, self.config
-        plan = np.asarray(tcp_plan, dtype=float)
-        pos = np.asarray(tcp_pos, dtype=float)
-        mat = np.asarray(tcp_mat, dtype=float).reshape(3, 3)
-        args = (
+        integrate = cfg.mode == "closed" and dt > 0.0
+        plan, pos, mat = self._plan, self._pos, self._mat
+        if integrate:
+            plan = np.asarray(tcp_plan, dtype=float)
+            pos = np.asarray(tcp_pos, dtype=float)
+            mat = np.asarray(tcp_mat, dtype=float).reshape(3, 3)
+        system = (
             self._section_length, self._section_segments, self.tool_length, cfg.orientation_weight, self.roll_free,
             self._regulariser, self._r,
         )
         outputs = (self._R, self._p, self._J_flat, self._J, self._error, self._A)
-        if not k["tick_system"](plan, pos, mat, self._base_rot, w, *args, False, *outputs):
-            # beyond 3 rad: the rotation error from the robust log (Python), then the same system
-            self._r[:] = _rotation_error_scalar(plan[:3, :3].ravel().tolist(), mat.ravel().tolist())
-            k["tick_system"](plan, pos, mat, self._base_rot, w, *args, True, *outputs)
-        x = _solve_spd(self._A, self._error)
-        k["tick_step"](
-            self._J, x, self.correction, self.proportional, self._gain_matrix, self.gain is not None,
-            cfg.outer_gain, dt, cfg.outer_proportional, float(self.max_correction),
+        x = self._x
+        if integrate:
+            if not k["tick_begin"](
+                q, self.correction, self.proportional, self._max_bend_array, w, True, plan, pos, mat, self._base_rot,
+                *system, *outputs,
+            ):  # beyond 3 rad: the rotation error from the robust log (Python), then the same system
+                self._r[:] = _rotation_error_scalar(plan[:3, :3].ravel().tolist(), mat.ravel().tolist())
+                k["tick_system"](plan, pos, mat, self._base_rot, w, *system, True, *outputs)
+            x = _solve_spd(self._A, self._error)
+        else:
+            k["commanded"](q, self.correction, self.proportional, self._max_bend_array, w)
+        keep = cfg.mode == "closed" and tensions is not None and dt > 0.0 and cfg.min_tension > 0.0
+        lengths = np.empty(len(self.offset))
+        c = self._cables
+        k["tick_end"](
+            integrate, self._J, x, self.correction, self.proportional, self._gain_matrix, self.gain is not None,
+            cfg.outer_gain, dt, cfg.outer_proportional, self._max_correction, q, self._max_bend_array, w,
+            keep, self._no_tensions if tensions is None else np.asarray(tensions, dtype=float), self.extra,
+            self.cable_kp, cfg.min_tension, cfg.tension_gain, cfg.max_extra_tension,
+            self._cable_segments, self._cable_halves, c._pair_section, c._pair_holes, c._gather,
+            self.offset, self._cable_section, lengths,
         )
+        self.last_command = w.tolist()
+        return lengths
 
     def _cable_set_points(self, w: list[float]) -> Array:
         """Cable lengths of shape ``w`` less the pre-tension offset and the common mode.

@@ -408,16 +408,72 @@ def _keep_tension(
         extra[s] = x
 
 
+def _tick_begin(  # noqa: PLR0913
+    q_plan: np.ndarray, correction: np.ndarray, proportional: np.ndarray, max_bend: np.ndarray, w: np.ndarray,
+    integrate: bool, plan: np.ndarray, pos: np.ndarray, mat: np.ndarray, b: np.ndarray, lengths: np.ndarray,
+    segments: np.ndarray, tool_length: float, ow: float, roll_free: bool, regulariser: np.ndarray, r: np.ndarray,
+    R: np.ndarray, p: np.ndarray, Jflat: np.ndarray, J: np.ndarray, error: np.ndarray, A: np.ndarray,
+) -> bool:
+    """First half of a tick, one call: the commanded shape and, when ``integrate``, the DLS system (False: > 3 rad)."""
+    _commanded(q_plan, correction, proportional, max_bend, w)
+    if not integrate:
+        return True
+    return _tick_system(
+        plan, pos, mat, b, w, lengths, segments, tool_length, ow, roll_free, regulariser, r, False, R, p, Jflat, J, error, A
+    )
+
+
+def _tick_end(  # noqa: PLR0913
+    integrated: bool, J: np.ndarray, x: np.ndarray, correction: np.ndarray, proportional: np.ndarray,
+    gain: np.ndarray, use_gain: bool, outer_gain: float, dt: float, outer_proportional: float, max_correction: float,
+    q_plan: np.ndarray, max_bend: np.ndarray, w: np.ndarray,
+    keep: bool, tensions: np.ndarray, extra: np.ndarray, cable_kp: np.ndarray, min_tension: float,
+    tension_gain: float, max_extra_tension: float,
+    cable_segments: np.ndarray, halves: np.ndarray, pair_section: np.ndarray, pair_holes: np.ndarray,
+    gather: np.ndarray, offset: np.ndarray, cable_section: np.ndarray, out: np.ndarray,
+) -> None:
+    """Second half, one call: step and correction, the shape again, tension keeping, the cable set-points."""
+    if integrated:
+        _tick_step(J, x, correction, proportional, gain, use_gain, outer_gain, dt, outer_proportional, max_correction)
+        _commanded(q_plan, correction, proportional, max_bend, w)
+    if keep:
+        _keep_tension(tensions, extra, cable_kp, min_tension, tension_gain, max_extra_tension, dt)
+    _set_points(w, cable_segments, halves, pair_section, pair_holes, gather, offset, extra, cable_section, out)
+
+
+def _plan_at(times: np.ndarray, t: float, q: np.ndarray, tcp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``controllers.plan_at``: the sample index and fraction at ``t``, then ``(1 - f)·a + f·b`` (numpy's order)."""
+    n = times.shape[0]
+    x = (t - times[0]) / (times[1] - times[0])
+    if 0.0 > x:  # Python's max(x, 0.0), min(., n - 1.0)
+        x = 0.0
+    if n - 1.0 < x:
+        x = n - 1.0
+    i0 = min(int(x), n - 2)
+    f = x - i0
+    g = 1.0 - f
+    q_out = np.empty(q.shape[1])
+    for j in range(q.shape[1]):
+        q_out[j] = g * q[i0, j] + f * q[i0 + 1, j]
+    tcp_out = np.empty((tcp.shape[1], tcp.shape[2]))
+    for i in range(tcp.shape[1]):
+        for j in range(tcp.shape[2]):
+            tcp_out[i, j] = g * tcp[i0, i, j] + f * tcp[i0 + 1, i, j]
+    return q_out, tcp_out
+
+
 def kernels() -> dict[str, Any]:
     """The compiled kernels (compiled, or loaded from numba's cache, on first use)."""
     if not _KERNELS:
         jit_in_place(
             globals(),
             ("_hypot", "_dsinc_over_x", "_one_minus_sinc_over_sq", "_sinc", "_pose_jacobian", "_cable_lengths", "_set_points",
-             "_commanded", "_rotation_error", "_tick_system", "_tick_step", "_keep_tension"),
+             "_commanded", "_rotation_error", "_tick_system", "_tick_step", "_keep_tension", "_tick_begin", "_tick_end",
+             "_plan_at"),
         )
         _KERNELS.update(
             pose_jacobian=_pose_jacobian, cable_lengths=_cable_lengths, set_points=_set_points, commanded=_commanded,
             tick_system=_tick_system, tick_step=_tick_step, keep_tension=_keep_tension, hypot=_hypot,
+            tick_begin=_tick_begin, tick_end=_tick_end, plan_at=_plan_at,
         )
     return _KERNELS

@@ -108,3 +108,18 @@ def test_compiled_tick_equals_the_python_tick(geometry, roll_free, gain, mode):
         assert compiled.last_command == python.last_command
         for name in ("correction", "proportional", "extra"):
             assert np.array_equal(getattr(compiled, name), getattr(python, name)), (tick, name)
+
+
+def test_plan_interpolation_kernel_is_numpys():
+    """``controllers.plan_at``'s kernel: numpy's (1 - f)·a + f·b at the same index and fraction, clamped at both ends."""
+    rng = np.random.default_rng(5)
+    times = 0.25 + 0.01 * np.arange(500)
+    q, tcp = rng.normal(size=(500, 6)), rng.normal(size=(500, 4, 4))
+    plan_at = kernels()["plan_at"]
+    for t in list(rng.uniform(0.0, 5.5, 300)) + [0.0, 0.25, 0.26, float(times[-1]), 9.0]:
+        x = min(max((t - float(times[0])) / float(times[1] - times[0]), 0.0), len(times) - 1.0)
+        i0 = min(int(x), len(times) - 2)
+        f = x - i0
+        q1, tcp1 = plan_at(times, t, q, tcp)
+        assert np.array_equal(q1, (1.0 - f) * q[i0] + f * q[i0 + 1])
+        assert np.array_equal(tcp1, (1.0 - f) * tcp[i0] + f * tcp[i0 + 1])
