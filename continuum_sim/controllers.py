@@ -133,10 +133,14 @@ def plan_at(plan: TaskPlan, arm: str, t: float) -> tuple[Array, Array]:
     and rang the cables (docs/plant.md, "Tension chatter").
     """
     times = plan.t
+    q, tcp = plan.q(arm), plan.tcp(arm)
+    if times.dtype == q.dtype == tcp.dtype == np.float64 and len(times) > 1:  # one numba call, the same numbers
+        from .control_kernels import kernels
+
+        return kernels()["plan_at"](times, float(t), q, tcp)
     x = min(max((t - float(times[0])) / float(times[1] - times[0]), 0.0), len(times) - 1.0)
     i0 = min(int(x), len(times) - 2)
     f = x - i0
-    q, tcp = plan.q(arm), plan.tcp(arm)
     return (1.0 - f) * q[i0] + f * q[i0 + 1], (1.0 - f) * tcp[i0] + f * tcp[i0 + 1]
 
 

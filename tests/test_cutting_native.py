@@ -53,6 +53,7 @@ def _lockstep(tools: ToolOptions | None = None, spindle=lambda t: SPEED, feed=0.
         for name in STATE_FIELDS:
             assert np.array_equal(getattr(a, name), getattr(b, name)), (d1.time, name, getattr(a, name), getattr(b, name))
         assert c1.removed_volume == c2.removed_volume and c1.detach_time == c2.detach_time
+        assert c1.cells_remaining == c2.cells_remaining
         assert np.array_equal(d1.qpos, d2.qpos) and np.array_equal(d1.qvel, d2.qvel), d1.time
         if states[0].feed_speed and states[0].depth > 0:
             counts["feeding"] += 1
@@ -100,3 +101,64 @@ def test_default_task_metrics_equal_between_the_paths():
         {k: v for k, v in run_scenario(c, None).items() if k not in WALL_CLOCK_METRICS} for c in (config, python))
     assert native_metrics["task"]["completed"]
     assert native_metrics == python_metrics  # bit-identical: == on every float
+
+
+def _labelled(material, held_columns):
+    """The numpy path's answer (``FoamCutter.check_connectivity``): (-1 no held material /
+    1 anchored / 0 loose, the loose voxels)."""
+    from scipy import ndimage
+
+    labels, _ = ndimage.label(material)
+    anchored = np.unique(labels[0])
+    anchored = anchored[anchored > 0]
+    held = labels[held_columns]
+    held = held[held > 0]
+    loose = (labels > 0) & ~np.isin(labels, anchored)
+    if held.size == 0:
+        return -1, loose
+    return int(np.isin(held, anchored).any()), loose
+
+
+@pytest.mark.parametrize("fill", [0.3, 0.45, 0.6, 0.9])
+def test_native_connectivity_equals_labelling_on_random_grids(fill):
+    """The flood fill (early exit at the anchor face) against ``scipy.ndimage.label``: the same
+    verdict and the same freed voxels, around the percolation threshold and above."""
+    from continuum_sim.model.cutting_kernels import kernels
+
+    k = kernels()
+    rng = np.random.default_rng(int(fill * 100))
+    outcomes = set()
+    for _ in range(60):
+        shape = tuple(int(n) for n in rng.integers(1, 9, size=3))
+        material = rng.random(shape) < fill
+        held_columns = rng.random(shape[:2]) < 0.2
+        held_columns[rng.integers(shape[0]), rng.integers(shape[1])] = True
+        verdict, loose = _labelled(material, held_columns)
+        assert k["held_anchored"](material, np.flatnonzero(held_columns).astype(np.int64)) == verdict
+        outcomes.add(verdict)
+        freed = material.copy()
+        assert k["free_loose"](freed) == np.count_nonzero(loose)
+        assert np.array_equal(freed, material & ~loose)
+    assert len(outcomes) >= 2 or fill > 0.8  # (a dense grid is always anchored)
+
+
+def test_native_connectivity_on_a_cut_plate():
+    """A slab cut through except a one-voxel bridge: anchored until the bridge goes, then the
+    far part is freed (both paths)."""
+    from continuum_sim.model.cutting_kernels import kernels
+
+    k = kernels()
+    material = np.ones((40, 30, 5), bool)
+    material[20, :, :] = False
+    material[20, 29, 4] = True  # the bridge
+    held = np.zeros((40, 30), bool)
+    held[35, 10] = True
+    flat = np.flatnonzero(held).astype(np.int64)
+    assert k["held_anchored"](material, flat) == _labelled(material, held)[0] == 1
+    material[20, 29, 4] = False
+    assert k["held_anchored"](material, flat) == _labelled(material, held)[0] == 0
+    freed = material.copy()
+    assert k["free_loose"](freed) == 19 * 30 * 5
+    assert np.array_equal(freed, material & ~_labelled(material, held)[1])
+    material[:, 10, :] = False  # no material under the jaws
+    assert k["held_anchored"](material, flat) == _labelled(material, held)[0] == -1

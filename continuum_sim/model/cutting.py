@@ -27,13 +27,15 @@ cutter can reach (the whole plate outside the clamped strip, sample included) at
   material by a spring-damper on the equivalent flat-face penetration (``block_*``).
 * **Spindle.** ``tools.SpindleLoop`` (PI, torque limit, stall) sets the spindle actuator;
   the cutting torque loads the spindle joint (``qfrc_applied``), so it slows under load.
-* **Detachment.** Every ``connectivity_period`` after material was removed, the grid is
-  labelled (``scipy.ndimage.label``, face connectivity); the sample comes free when the
+* **Detachment.** Every ``connectivity_period`` after material was removed, the grid's
+  face connectivity is checked (numpy path: ``scipy.ndimage.label``; native: a flood fill
+  from the held material that stops at the clamped edge); the sample comes free when the
   material under the gripper's jaws (voxels within ``grip_radius`` of the grasp point) is
   no longer connected to the clamped edge. Then the weld ``sample_weld`` is released and
   every voxel that lost its connection leaves the grid (it went with the sample).
 
-The voxel work of each step (engagement, depth sampling, removal) runs in numba kernels
+The voxel work of each step (engagement, depth sampling, removal) and the connectivity
+check run in numba kernels
 (``cutting_kernels``) unless ``FoamOptions.native`` is false; both paths give bit-identical
 results.
 
@@ -123,6 +125,10 @@ class CutState:
     blocked: bool = False  # a non-cutting cutter pressed into material
 
 
+_IDLE = CutState()  # what ``FoamCutter.step`` returns when nothing happened (all zero; shared, read only)
+_IDLE.force.flags.writeable = False
+
+
 class FoamCutter:
     """Voxel foam + cutting force + spindle loop + connectivity detachment (see module doc)."""
 
@@ -185,6 +191,7 @@ class FoamCutter:
         in_sample = (gx >= lo[0]) & (gx <= hi[0]) & (gy >= lo[1]) & (gy <= hi[1])
         near = (gx - grasp_point[0]) ** 2 + (gy - grasp_point[1]) ** 2 <= foam.grip_radius**2
         self._held_columns = in_sample & near if (in_sample & near).any() else in_sample
+        self._held_flat = np.flatnonzero(self._held_columns).astype(np.int64)  # flat (i, j) indices, native check
         band = np.zeros(grid.shape[:2], dtype=bool)  # type: ignore[assignment]
         if kerf is not None:
             # The kerf's core: the middle half of its width, so a cut up to a quarter kerf width
@@ -195,10 +202,22 @@ class FoamCutter:
                 t = np.clip(((gx - a[0]) * ab[0] + (gy - a[1]) * ab[1]) / float(ab @ ab), 0.0, 1.0)
                 band |= (gx - a[0] - t * ab[0]) ** 2 + (gy - a[1] - t * ab[1]) ** 2 <= (width / 2) ** 2
         self._band_columns = band
-        self._band_flat = np.flatnonzero(band)  # the band's columns in material.reshape(-1, nz)
+        self._band_flat = np.flatnonzero(band).astype(np.int64)  # the band's columns in material.reshape(-1, nz)
         self.spindle = SpindleLoop(tools)
         self._edges = grid.lo[2] + np.arange(grid.shape[2] + 1) * grid.h[2]  # z layer edges (as layer_weights)
         self._native = _compiled_kernels() if foam.native else None
+        # Per-step reads and writes go through views made once (each ``data.<field>`` access
+        # builds a new array object): MjData's buffers live as long as ``data``.
+        self._opt = model.opt
+        self._qvel, self._ctrl, self._qacc, self._qfrc = data.qvel, data.ctrl, data.qacc, data.qfrc_applied
+        self._xpos_row, self._xmat_row = data.geom_xpos[self.cutter], data.geom_xmat[self.cutter]
+        self._cvel_row, self._com_row = data.cvel[self.body], data.subtree_com[self._root]
+        self._xipos_row, self._xfrc_row = data.xipos[self.body], data.xfrc_applied[self.body]
+        self._box = (*(float(v) for v in grid.lo), *(float(v) for v in grid.hi))
+        self._point = np.array([0.0, 0.0, self._z_mid])  # where the cutting force acts (mj_jac)
+        self._jxy = self._jac[:2]
+        self._e, self._g = np.zeros(2), np.zeros(2)
+        self._wrench, self._delta = np.zeros(6), np.zeros(6)
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -235,6 +254,8 @@ class FoamCutter:
     def cells_remaining(self) -> int:
         """Kerf-band columns with material left in them."""
         material = self.grid.material
+        if self._native is not None:  # (read every few ticks by the recorder)
+            return int(self._native["columns_with_material"](material, self._band_flat))
         return int(np.count_nonzero(material.reshape(-1, material.shape[2])[self._band_flat].any(axis=1)))
 
     @property
@@ -256,46 +277,47 @@ class FoamCutter:
 
         Written in scalar floats where it can: it runs every physics step.
         """
-        model, data, grid, foam = self.model, self.data, self.grid, self.foam
-        dt = float(model.opt.timestep)
-        omega = float(data.qvel[self.spindle_dof])
-        data.ctrl[self.spindle_actuator] = self.spindle.control(spindle_reference, omega, float(data.time), dt)
+        data, grid, foam = self.data, self.grid, self.foam
+        dt = float(self._opt.timestep)
+        omega = self._qvel.item(self.spindle_dof)
+        self._ctrl[self.spindle_actuator] = self.spindle.control(spindle_reference, omega, float(data.time), dt)
 
-        state = CutState()
-        px_, py_, pz_ = (float(v) for v in data.geom_xpos[self.cutter])
-        mat = data.geom_xmat[self.cutter]
-        ax, ay, az = float(mat[2]), float(mat[5]), float(mat[8])  # the cutter axis (matrix column z)
+        state = _IDLE
+        px_, py_, pz_ = self._xpos_row.tolist()
+        mat = self._xmat_row.tolist()
+        ax, ay, az = mat[2], mat[5], mat[8]  # the cutter axis (matrix column z)
         z_mid = self._z_mid
         # The axis point at the plate's mid-plane (the cutter stands near the plate normal).
         along = (z_mid - pz_) / az if abs(az) > 0.5 else 0.0
         cx, cy = px_ + along * ax, py_ + along * ay
         z0 = pz_ - self.half_length * abs(az)
         z1 = pz_ + self.half_length * abs(az)
-        self._recent[self._recent_i] = (cx, cy)  # (its own probe circle excludes nothing: strict < below)
+        recent, ri = self._recent, self._recent_i
+        recent[ri, 0] = cx  # (its own probe circle excludes nothing: strict < below)
+        recent[ri, 1] = cy
         r, probe = self.radius, self._probe
-        lo, hi = grid.lo, grid.hi
-        near = (cx + probe > lo[0] and cx - probe < hi[0] and cy + probe > lo[1] and cy - probe < hi[1]
-                and z1 > lo[2] and z0 < hi[2])
+        lo0, lo1, lo2, hi0, hi1, hi2 = self._box
+        near = cx + probe > lo0 and cx - probe < hi0 and cy + probe > lo1 and cy - probe < hi1 and z1 > lo2 and z0 < hi2
         fx = fy = 0.0
         torque = 0.0
         if not near:
             self._block = None
         else:
+            lo = grid.lo
             # Velocity of the cutter centre: the body's spatial velocity (cvel, about the
             # subtree centre of mass of its tree's root) moved to the point.
-            b = self.body
-            w = data.cvel[b]
-            o = data.subtree_com[self._root]
-            rx, ry, rz = px_ - o[0], py_ - o[1], pz_ - o[2]
-            vx = float(w[3] + w[1] * rz - w[2] * ry)
-            vy = float(w[4] + w[2] * rx - w[0] * rz)
+            w0, w1, w2, w3, w4, _ = self._cvel_row.tolist()
+            o0, o1, o2 = self._com_row.tolist()
+            rx, ry, rz = px_ - o0, py_ - o1, pz_ - o2
+            vx = w3 + w1 * rz - w2 * ry
+            vy = w4 + w2 * rx - w0 * rz
             speed = math.hypot(vx, vy)
             cutting = abs(omega) >= foam.min_cutting_speed and not self.spindle.stalled
             feeding = cutting and speed > 1e-6
             ex, ey = (vx / speed, vy / speed) if feeding else (0.0, 0.0)  # feed direction; e_n = z × e_f = (−ey, ex)
             if self._native is not None:
                 n_inside, d_cc, d_cs, d_c, mean_depth = self._native["engage"](
-                    grid.material, *grid.centres, self._edges, lo, grid.h, self._recent, self._cos_t, self._sin_t,
+                    grid.material, *grid.centres, self._edges, lo, grid.h, recent, self._cos_t, self._sin_t,
                     self._i_cc, self._i_cs, self._i_c, cx, cy, z0, z1, r, probe, self._probe2, ex, ey, feeding)
             else:
                 overlap = self._overlap(cx, cy, z0, z1)
@@ -305,7 +327,6 @@ class FoamCutter:
                     qx = cx + probe * (ex * ct - ey * st)
                     qy = cy + probe * (ey * ct + ex * st)
                     depth = grid.depth_at(qx, qy, overlap[0])
-                    recent = self._recent
                     reached = (((qx[:, None] - recent[None, :, 0]) ** 2 + (qy[:, None] - recent[None, :, 1]) ** 2)
                                < self._probe2).any(axis=1)
                     depth[reached] = 0.0
@@ -349,6 +370,8 @@ class FoamCutter:
                     cols[hit] = data.time
                 self.removed_volume += n_inside * grid.voxel_volume
                 self._dirty = True
+                if state is _IDLE:
+                    state = CutState()
                 state.cutting = True
             elif n_inside:
                 # Uncut foam against a cutter that does not cut: a spring from where the
@@ -371,7 +394,7 @@ class FoamCutter:
                 state = CutState(force=np.array([fx, fy, 0.0]), feed_speed=speed, blocked=True)
             if not n_inside or cutting:
                 self._block = None
-        self._recent_i = (self._recent_i + 1) % len(self._recent)
+        self._recent_i = (ri + 1) % len(recent)
         self._apply(fx, fy, cx, cy, z_mid, torque, omega, dt)
         self.state = state
         return state
@@ -396,29 +419,38 @@ class FoamCutter:
                        x: float, y: float) -> float:
         """End-of-step feed speed along (ex, ey) under the cutting force −s·(a·e_f + b·e_n), ≥ 0."""
         model, data = self.model, self.data
-        jac = self._jac
-        mujoco.mj_jac(model, data, jac, None, np.array([x, y, self._z_mid]), self.body)
-        jxy = jac[:2]
+        point = self._point
+        point[0] = x
+        point[1] = y
+        mujoco.mj_jac(model, data, self._jac, None, point, self.body)
+        jxy = self._jxy
         minv_jt = self._minv_jt
         mujoco.mj_solveM(model, data, minv_jt, jxy)
         inv_l = jxy @ minv_jt.T  # 2×2 inverse inertia at the point
-        acc = jxy @ data.qacc - inv_l @ self._applied_force[:2]  # last step's, without the cutting force
-        w = (vx + dt * float(acc[0])) * ex + (vy + dt * float(acc[1])) * ey
-        g = np.array([a * ex - b * ey, a * ey + b * ex])
-        gain = float(np.array([ex, ey]) @ inv_l @ g)
+        acc = jxy @ self._qacc - inv_l @ self._applied_force[:2]  # last step's, without the cutting force
+        acc0, acc1 = acc.tolist()
+        w = (vx + dt * acc0) * ex + (vy + dt * acc1) * ey
+        # (preallocated vectors; the same BLAS products as with new arrays)
+        e, g = self._e, self._g
+        e[0] = ex
+        e[1] = ey
+        g[0] = a * ex - b * ey
+        g[1] = a * ey + b * ex
+        gain = float(e @ inv_l @ g)
         return max(w, 0.0) / (1.0 + dt * max(gain, 0.0))
 
     def _apply(self, fx: float, fy: float, x: float, y: float, z: float, torque: float, omega: float, dt: float) -> None:
         """Add the in-plane cutter force (at (x, y, z)) to the housing and the load torque to the spindle."""
-        data = self.data
-        c = data.xipos[self.body]
-        rx, ry, rz = x - c[0], y - c[1], z - c[2]
-        wrench = np.array([fx, fy, 0.0, -rz * fy, rz * fx, rx * fy - ry * fx])  # force; r × F
-        data.xfrc_applied[self.body] += wrench - self._applied_force
-        self._applied_force = wrench
+        c0, c1, c2 = self._xipos_row.tolist()
+        rx, ry, rz = x - c0, y - c1, z - c2
+        wrench = self._wrench
+        wrench[:] = (fx, fy, 0.0, -rz * fy, rz * fx, rx * fy - ry * fx)  # force; r × F
+        np.subtract(wrench, self._applied_force, out=self._delta)
+        self._xfrc_row += self._delta
+        self._wrench, self._applied_force = self._applied_force, wrench
         # The load resists the spin but cannot reverse it within one step.
         load = -math.copysign(min(torque, self.spindle_inertia * abs(omega) / dt), omega) if torque > 0 else 0.0
-        data.qfrc_applied[self.spindle_dof] += load - self._applied_torque
+        self._qfrc[self.spindle_dof] += load - self._applied_torque
         self._applied_torque = load
 
     def after_step(self) -> bool:
@@ -432,18 +464,29 @@ class FoamCutter:
         return self.check_connectivity()
 
     def check_connectivity(self) -> bool:
-        """Label the remaining material; free the sample when the held material lost the clamp."""
+        """Free the sample when the held material lost the clamp (face connectivity to i = 0).
+
+        The numpy path labels the whole grid (``scipy.ndimage.label``); the native one floods
+        from the held material towards the anchor face and stops there (a connected grid, the
+        usual case, costs a short walk), and only on detachment floods from the anchor face to
+        find what left. Both free the same voxels at the same check."""
         self.checks += 1
-        labels, _ = ndimage.label(self.grid.material)
-        anchored = np.unique(labels[0])
-        anchored = anchored[anchored > 0]
-        held = labels[self._held_columns]
-        held = held[held > 0]
-        if held.size == 0 or np.isin(held, anchored).any():
-            return False
-        loose = (labels > 0) & ~np.isin(labels, anchored)
-        self.freed_volume = float(np.count_nonzero(loose)) * self.grid.voxel_volume
-        self.grid.material[loose] = False
+        material = self.grid.material
+        if self._native is not None:
+            if self._native["held_anchored"](material, self._held_flat) != 0:
+                return False
+            self.freed_volume = float(self._native["free_loose"](material)) * self.grid.voxel_volume
+        else:
+            labels, _ = ndimage.label(material)
+            anchored = np.unique(labels[0])
+            anchored = anchored[anchored > 0]
+            held = labels[self._held_columns]
+            held = held[held > 0]
+            if held.size == 0 or np.isin(held, anchored).any():
+                return False
+            loose = (labels > 0) & ~np.isin(labels, anchored)
+            self.freed_volume = float(np.count_nonzero(loose)) * self.grid.voxel_volume
+            material[loose] = False
         self.data.eq_active[self.weld] = 0
         self.detach_time = float(self.data.time)
         self.model.geom_rgba[self._band, 3] = 0.0
@@ -479,6 +522,9 @@ def _compiled_kernels() -> dict[str, Any]:
                     0.5, 0.5, 0.0, 1.0, 0.4, 0.9, 0.8, 1.0, 0.0, True)
         k["remove"](material, np.zeros_like(material), np.full((2, 2), np.nan, np.float32), c, c, c, lo, h,
                     0.5, 0.5, 0.0, 1.0, 0.4, 0.0)
+        k["held_anchored"](material, np.array([1], np.int64))
+        k["free_loose"](material)
+        k["columns_with_material"](material, np.array([1], np.int64))
     return k
 
 
@@ -615,7 +661,8 @@ class CuttingObserver:
         arm = sim.handles.tool_arm["grinder"] if hasattr(sim.handles, "tool_arm") else "left"
         self.cutter = foam_cutter(sim.model, sim.data, layout, scene, arm=arm)
         self.every = max(1, int(every))
-        self.rows: dict[str, list[np.ndarray]] = {k: [] for k in RECORD_FIELDS}
+        self.rows: dict[str, list[Any]] = {k: [] for k in RECORD_FIELDS}
+        self._row_lists = [self.rows[k] for k in RECORD_FIELDS]
         self._sum = np.zeros(10)
         self._steps = 0
         self._active = self._blocked = False
@@ -629,16 +676,14 @@ class CuttingObserver:
             n = max(self._steps, 1)
             mean = self._sum / n
             c = self.cutter
-            values = {
-                "cut_force": mean[0:3], "cut_feed_force": mean[3], "cut_normal_force": mean[4], "cut_torque": mean[5],
-                "cut_power": mean[6], "cut_mrr": mean[7], "cut_depth": mean[8], "cut_chip": mean[9],
-                "cut_active": self._active, "cut_blocked": self._blocked, "cut_removed_volume": c.removed_volume,
-                "cutter_pos": sim.data.geom_xpos[c.cutter], "spindle_reference": self._reference,
-                "cut_spindle_speed": c.spindle_speed,
-                "spindle_stalled": c.stalled,
-            }
-            for key, value in values.items():
-                self.rows[key].append(np.array(value, copy=True))
+            # In RECORD_FIELDS order; scalars as they are (``record`` stacks them), the one
+            # array that aliases MuJoCo's state copied (``mean`` is new every tick).
+            values = (
+                mean[0:3], mean[3], mean[4], mean[5], mean[6], mean[7], mean[8], mean[9], self._active, self._blocked,
+                c.removed_volume, c._xpos_row.copy(), self._reference, c.spindle_speed, c.stalled,
+            )
+            for rows, value in zip(self._row_lists, values, strict=True):
+                rows.append(value)
         self._sum[:] = 0.0
         self._steps = 0
         self._active = self._blocked = False
@@ -646,12 +691,14 @@ class CuttingObserver:
     def before_physics_step(self, sim: Any) -> None:
         commands = getattr(sim, "commands", None)
         self._reference = float(getattr(commands, "spindle_speed", 0.0) or 0.0)
-        before = self.cutter.removed_volume
-        s = self.cutter.step(self._reference)
-        self._sum += (*s.force, s.feed_force, s.normal_force, s.torque, s.power, s.mrr, s.depth, s.chip)
+        cutter = self.cutter
+        before = cutter.removed_volume
+        s = cutter.step(self._reference)
+        if s is not _IDLE:  # (adding _IDLE's +0.0s leaves the sums as they are: they are never −0.0)
+            self._sum += (*s.force, s.feed_force, s.normal_force, s.torque, s.power, s.mrr, s.depth, s.chip)
+            self._blocked |= s.blocked
+            self._active |= cutter.removed_volume > before
         self._steps += 1
-        self._active |= self.cutter.removed_volume > before
-        self._blocked |= s.blocked
 
     def after_physics_step(self, sim: Any) -> None:
         """Nothing per step after MuJoCo's: removal happens before it."""

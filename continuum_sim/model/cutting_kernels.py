@@ -1,4 +1,4 @@
-"""numba kernels of ``cutting.FoamCutter.step``: the voxel work of one physics step.
+"""numba kernels of ``cutting.FoamCutter``: the voxel work of one physics step, and the connectivity check.
 
 ``engage`` (layer weights, the voxels inside the cutter, the engaged depth on the leading
 half circle with the recent-centres exclusion, its bin integrals) and ``remove`` (voxel
@@ -11,6 +11,12 @@ floating-point order, so both paths give bit-identical results
 * the products with the layer weights and the bin integrals call BLAS as numpy does
   (``np.dot``: ``ddot`` for one row, ``dgemv`` for several, as numpy's ``matmul``);
 * the mean depth is numpy's pairwise sum (``_pairwise_sum``).
+
+``held_anchored`` and ``free_loose`` are the connectivity check (``FoamCutter.check_connectivity``):
+a flood fill over face neighbours, as ``scipy.ndimage.label``'s default structure, gives
+the same verdict and frees the same voxels as the numpy path's labelling; it starts at the
+held material and stops at the anchor face, so a still-connected grid costs a short walk
+instead of a labelling of every voxel.
 
 The BLAS numba calls is SciPy's OpenBLAS, numpy's is its own build of the same library;
 the equality tests would show if a platform's two builds summed differently.
@@ -193,9 +199,105 @@ def _remove(
     return _inside(material, cut, removed_at, xc, yc, zc, lo, h, cx, cy, z0, z1, r, True, time)
 
 
+def _push(material: np.ndarray, seen: np.ndarray, stack: np.ndarray, top: int, i: int, j: int, k: int) -> int:
+    """Put voxel (i, j, k) on the flood's ``stack`` if it is unseen material; the new stack top."""
+    if material[i, j, k] and not seen[i, j, k]:
+        seen[i, j, k] = True
+        stack[top] = (i * material.shape[1] + j) * material.shape[2] + k
+        return top + 1
+    return top
+
+
+def _flood(material: np.ndarray, seen: np.ndarray, stack: np.ndarray, top: int, stop_at_anchor: bool) -> bool:
+    """Depth-first flood fill over face neighbours (``ndimage.label``'s default structure) from
+    the ``top`` voxels on ``stack`` (already marked in ``seen``), marking what it reaches. With
+    ``stop_at_anchor`` it returns True as soon as it reaches the anchor face i = 0; the step
+    towards i = 0 is taken first, so a connected grid is proven after few voxels."""
+    nx, ny, nz = material.shape
+    for t in range(top):
+        if stack[t] // (ny * nz) == 0 and stop_at_anchor:
+            return True
+    while top > 0:
+        top -= 1
+        v = stack[top]
+        k = v % nz
+        j = (v // nz) % ny
+        i = v // (ny * nz)
+        # Pushed last, taken first: towards the anchor.
+        if i + 1 < nx:
+            top = _push(material, seen, stack, top, i + 1, j, k)
+        if k + 1 < nz:
+            top = _push(material, seen, stack, top, i, j, k + 1)
+        if k > 0:
+            top = _push(material, seen, stack, top, i, j, k - 1)
+        if j + 1 < ny:
+            top = _push(material, seen, stack, top, i, j + 1, k)
+        if j > 0:
+            top = _push(material, seen, stack, top, i, j - 1, k)
+        if i > 0:
+            pushed = _push(material, seen, stack, top, i - 1, j, k)
+            if stop_at_anchor and i == 1 and pushed > top:
+                return True  # reached the anchor face
+            top = pushed
+    return False
+
+
+def _held_anchored(material: np.ndarray, held: np.ndarray) -> int:
+    """Whether the material in the held columns (flat (i, j) indices ``held``) still connects
+    to the anchor face i = 0: 1 yes, 0 no, -1 no material there (as ``FoamCutter``'s labelling)."""
+    nx, ny, nz = material.shape
+    seen = np.zeros(material.shape, np.bool_)
+    stack = np.empty(nx * ny * nz, np.int64)
+    top = 0
+    for c in held:
+        for k in range(nz):
+            top = _push(material, seen, stack, top, c // ny, c % ny, k)
+    if top == 0:
+        return -1
+    return 1 if _flood(material, seen, stack, top, True) else 0
+
+
+def _free_loose(material: np.ndarray) -> int:
+    """Remove the material not connected to the anchor face i = 0 (it left with the sample);
+    returns the voxels removed."""
+    nx, ny, nz = material.shape
+    seen = np.zeros(material.shape, np.bool_)
+    stack = np.empty(nx * ny * nz, np.int64)
+    top = 0
+    for j in range(ny):
+        for k in range(nz):
+            top = _push(material, seen, stack, top, 0, j, k)
+    _flood(material, seen, stack, top, False)
+    count = 0
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if material[i, j, k] and not seen[i, j, k]:
+                    material[i, j, k] = False
+                    count += 1
+    return count
+
+
+def _columns_with_material(material: np.ndarray, columns: np.ndarray) -> int:
+    """How many of the voxel columns ``columns`` (flat (i, j) indices) hold material."""
+    ny, nz = material.shape[1], material.shape[2]
+    count = 0
+    for c in columns:
+        i, j = c // ny, c % ny
+        for k in range(nz):
+            if material[i, j, k]:
+                count += 1
+                break
+    return count
+
+
 def kernels() -> dict[str, Any]:
-    """The compiled kernels ``engage`` and ``remove`` (compiled, or loaded from numba's cache, on first use)."""
+    """The compiled kernels ``engage``, ``remove``, ``held_anchored``, ``free_loose`` and
+    ``columns_with_material``
+    (compiled, or loaded from numba's cache, on first use)."""
     if not _KERNELS:
-        jit_in_place(globals(), ("_index_range", "_block_sum", "_pairwise_sum", "_inside", "_engage", "_remove"))
-        _KERNELS.update(engage=_engage, remove=_remove)
+        jit_in_place(globals(), ("_index_range", "_block_sum", "_pairwise_sum", "_inside", "_engage", "_remove",
+                                 "_push", "_flood", "_held_anchored", "_free_loose", "_columns_with_material"))
+        _KERNELS.update(engage=_engage, remove=_remove, held_anchored=_held_anchored, free_loose=_free_loose,
+                        columns_with_material=_columns_with_material)
     return _KERNELS

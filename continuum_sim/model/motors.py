@@ -322,15 +322,17 @@ class MotorDrive:
         )
         self.spindle = int(handles.spindle_actuator)
         self._fused = self._fuse(model) if options.cable_model != "lumped" else None
-        self._views: tuple | None = None  # the banks' state as views into the fused arrays
-        self._state: tuple = ()  # the fused (position, integral, set_point) behind those views
+        self._views: tuple | None = None  # the banks' state as views into the fused state
+        self._state: tuple = ()  # the fused (3, n) state behind those views and the set-point scratch
+        self._data = None  # the MjData whose arrays ``_arrays`` holds
+        self._arrays: tuple = ()
 
     def _fuse(self, model) -> dict:
         """Per-element constants of every elastic cable motor and the gripper motor, in one vector.
 
-        ``MotorBank.command`` per bank and this fused update do the same elementwise float
-        operations (scalar ratings become per-element arrays of the same values), so the
-        results are bit-identical; only the per-call overhead is shared.
+        ``MotorBank.command`` per bank and this fused update (``_drive_motors``, compiled) do
+        the same float operations per element in the same order (scalar ratings become
+        per-element values), so the results are bit-identical; only the per-call overhead is shared.
         """
         banks = [*self.banks.values(), self.gripper]
         nc = sum(len(b.actuators) for b in self.banks.values())
@@ -339,19 +341,21 @@ class MotorDrive:
             return np.concatenate([np.full(len(b.actuators), float(f(b))) for b in banks])
 
         bounds = np.cumsum([0] + [len(b.actuators) for b in banks])
+        n = int(bounds[-1])
+        const = np.zeros((_N_CONST, n))  # rows: _EA, _LEAD, _VG, _H, _DROOP, _KP, _KI, _VMAX (gripper: EA, LEAD, VG unused)
+        const[_EA, :nc] = np.concatenate([b.ea for b in self.banks.values()])
+        const[_LEAD, :nc] = np.concatenate([b.lead for b in self.banks.values()])
+        const[_VG] = per(lambda b: b.velocity_gain)
+        const[_H] = per(lambda b: b.implicit_step)
+        const[_DROOP] = per(lambda b: b.ratings.droop)
+        const[_KP] = per(lambda b: b.ratings.kp)
+        const[_KI] = per(lambda b: b.ratings.ki)
+        const[_VMAX] = per(lambda b: b.ratings.max_speed)
         return dict(
             banks=banks, nc=nc, slices=[slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)],
-            act=np.concatenate([b.actuators for b in banks]),
-            ten=np.concatenate([b.tendons for b in banks]),
-            cable_act=np.concatenate([b.actuators for b in self.banks.values()]),
-            grip_act=int(self.gripper.actuators[0]),
-            ea=np.concatenate([b.ea for b in self.banks.values()]),
-            lead=np.concatenate([b.lead for b in self.banks.values()]),
-            vg=per(lambda b: b.velocity_gain)[:nc], h=per(lambda b: b.implicit_step),
-            hc=per(lambda b: b.implicit_step)[:nc],
-            droop=per(lambda b: b.ratings.droop), kp=per(lambda b: b.ratings.kp), ki=per(lambda b: b.ratings.ki),
-            vmax=per(lambda b: b.ratings.max_speed),
-            model=model,
+            index=np.stack([np.concatenate([b.actuators for b in banks]),
+                            np.concatenate([b.tendons for b in banks])]).astype(np.int64),
+            const=const, model=model, kernel=_drive_kernel(),
         )
 
     def __call__(self, sim, commands) -> None:
@@ -368,34 +372,96 @@ class MotorDrive:
         data.ctrl[self.spindle] = commands.spindle_speed
 
     def _fused_command(self, data, commands, dt: float) -> None:
-        """``MotorBank.command`` of every bank at once (elastic model, dt > 0, banks started)."""
+        """``MotorBank.command`` of every bank at once (elastic model, dt > 0, banks started).
+
+        The motors' state lives in one (3, n) array (position, integral, set-point) updated in
+        place; each bank's ``position``/``integral``/``set_point`` are views of its columns.
+        A bank whose attributes were replaced since (its own ``command``/``reset``) is gathered anew.
+        """
         f = self._fused
         assert f is not None
-        banks, nc = f["banks"], f["nc"]
+        banks = f["banks"]
         views = self._views
         if views is None or any(b.position is not v[0] or b.integral is not v[1] or b.set_point is not v[2]
                                 for b, v in zip(banks, views, strict=True)):
-            x = np.concatenate([b.position for b in banks])
-            integral = np.concatenate([b.integral for b in banks])
-            set_point = np.concatenate([b.set_point for b in banks])
-        else:
-            x, integral, set_point = self._state
-        s = np.empty(len(x))
+            state = np.stack([np.concatenate([b.position for b in banks]), np.concatenate([b.integral for b in banks]),
+                              np.concatenate([b.set_point for b in banks])])
+            out = []
+            for b, sl in zip(banks, f["slices"], strict=True):
+                b.position, b.integral, b.set_point = state[0, sl], state[1, sl], state[2, sl]
+                out.append((b.position, b.integral, b.set_point))
+            self._views = tuple(out)
+            self._state = (state, np.empty(state.shape[1]))
+        state, s = self._state
         for arm, sl in zip(self.banks, f["slices"], strict=False):
             s[sl] = commands.cable_lengths[arm]
-        s[nc] = commands.gripper_cable
-        length = data.ten_length[f["ten"]]
-        k = np.empty(len(x))
-        k[:nc] = f["ea"] / (f["lead"] + length[:nc])
-        k[nc:] = f["model"].actuator_gainprm[f["grip_act"], 0]
-        kc = k[:nc]
-        _write_cable_stiffness(f["model"], f["cable_act"], kc, (length > x)[:nc], f["vg"], f["hc"])
-        x_new, integral, ctrl = _motor_step(x, integral, set_point, s, length, k, f["droop"], f["kp"], f["ki"], f["vmax"],
-                                            f["h"], dt)
-        data.ctrl[f["act"]] = ctrl
-        self._state = (x_new, integral, s)
-        out = []
-        for b, sl in zip(banks, f["slices"], strict=True):
-            b.position, b.integral, b.set_point = x_new[sl], integral[sl], s[sl]
-            out.append((b.position, b.integral, b.set_point))
-        self._views = tuple(out)
+        s[f["nc"]] = commands.gripper_cable
+        if data is not self._data:
+            model = f["model"]
+            self._data = data
+            self._arrays = (data.ten_length, data.ctrl, model.actuator_gainprm, model.actuator_biasprm)
+        ten_length, ctrl, gainprm, biasprm = self._arrays
+        f["kernel"](state, s, ten_length, ctrl, gainprm, biasprm, f["index"], f["const"], f["nc"], dt)
+
+
+# Rows of MotorDrive's per-motor constants (``_drive_motors``'s ``const``).
+_EA, _LEAD, _VG, _H, _DROOP, _KP, _KI, _VMAX = range(8)
+_N_CONST = 8
+
+
+def _drive_motors(state, s, ten_length, ctrl, gainprm, biasprm, index, const, nc, dt) -> None:  # pragma: no cover - numba
+    """One tick of every motor of ``MotorDrive``, element by element: the cables' stiffness
+    write (``_write_cable_stiffness``, the first ``nc`` motors) and the PI loop (``_motor_step``).
+
+    The same float operations in the same order as those two numpy functions (their array
+    expressions evaluated per element), so the results are bit-identical to them. ``state``
+    rows: position, integral, set-point (updated in place); ``index`` rows: actuator, tendon.
+    """
+    for i in range(s.shape[0]):
+        act = index[0, i]
+        x = state[0, i]
+        integral = state[1, i]
+        s_i = s[i]
+        length = ten_length[index[1, i]]
+        h = const[_H, i]
+        if i < nc:
+            k = const[_EA, i] / (const[_LEAD, i] + length)
+        else:
+            k = gainprm[act, 0]
+        taut = length > x
+        if i < nc:
+            gainprm[act, 0] = k
+            biasprm[act, 1] = -k
+            biasprm[act, 2] = -(const[_VG, i] + (k * h if taut else 0.0))
+        droop, kp, ki, vmax = const[_DROOP, i], const[_KP, i], const[_KI, i], const[_VMAX, i]
+        v_ff = (s_i - state[2, i]) / dt
+        dk = droop * k if taut else 0.0
+        a = kp + ki * dt
+        x_new = (x + dt * (v_ff + a * s_i + ki * integral + dk * length)) / (1.0 + dt * (a + dk))
+        v_cmd = v_ff + a * (s_i - x_new) + ki * integral
+        if abs(v_cmd) > vmax:
+            v_sat = min(max(v_cmd, -vmax), vmax)
+            x_new = (x + dt * (v_sat + dk * length)) / (1.0 + dt * dk)
+        else:
+            integral = integral + dt * (s_i - x_new)
+        ctrl[act] = 0.5 * (x + x_new) + h * (x_new - x) / dt
+        state[0, i] = x_new
+        state[1, i] = integral
+        state[2, i] = s_i
+
+
+_KERNEL: list = []
+
+
+def _drive_kernel():
+    """``_drive_motors`` compiled by numba (or loaded from its cache) on first use, outside any tick."""
+    if not _KERNEL:
+        from .jit import jit, sigint_deferred
+
+        with sigint_deferred():
+            kernel = jit(_drive_motors)
+            one = np.zeros(1)
+            kernel(np.zeros((3, 1)), one, one, np.zeros(1), np.zeros((1, 10)), np.zeros((1, 10)),
+                   np.zeros((2, 1), dtype=np.int64), np.ones((_N_CONST, 1)), 1, 1.0)
+        _KERNEL.append(kernel)
+    return _KERNEL[0]

@@ -22,6 +22,7 @@ motor model, overwrite ``data.ctrl`` from ``sim.commands`` before each physics s
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -224,19 +225,47 @@ def simulate(sim: Simulation, n_ticks: int, observers: Sequence[Observer] = ()) 
 
 # ------------------------------------------------------------------ built-in observers
 class HealthCheck(Observer):
-    """Stops the run on a new MuJoCo warning or a non-finite state."""
+    """Stops the run on a new MuJoCo warning or a non-finite state.
+
+    One compiled pass (``_health_code``) over the warning counters, ``qpos`` and ``qvel``
+    per tick; the message is built as before only when it finds something.
+    """
 
     def start(self, sim: Simulation) -> None:
         self.baseline = sim.data.warning.number.copy()
+        self._data: mujoco.MjData | None = None
+        self._arrays: tuple[np.ndarray, ...] = ()
 
     def after_tick(self, sim: Simulation) -> str | None:
         data = sim.data
-        grew = np.flatnonzero(data.warning.number > self.baseline)
-        if grew.size:
+        if data is not self._data:  # the views stay valid as long as ``data`` does
+            self._data, self._arrays = data, (data.warning.number, data.qpos, data.qvel)
+        number, qpos, qvel = self._arrays
+        code = _kernels()[1](number, self.baseline, qpos, qvel)
+        if code == _WARNED:
+            grew = np.flatnonzero(number > self.baseline)
             return f"MuJoCo warning {mujoco.mjtWarning(int(grew[0])).name} at t = {data.time:.4f} s"
-        if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
+        if code == _NOT_FINITE:
             return f"non-finite state at t = {data.time:.4f} s"
         return None
+
+
+_HEALTHY, _WARNED, _NOT_FINITE = 0, 1, 2
+
+
+def _health_code(number: np.ndarray, baseline: np.ndarray, qpos: np.ndarray, qvel: np.ndarray) -> int:  # pragma: no cover - numba
+    """_WARNED if a warning counter grew past ``baseline``, else _NOT_FINITE if ``qpos`` or
+    ``qvel`` holds a NaN or an infinity, else _HEALTHY."""
+    for i in range(number.shape[0]):
+        if number[i] > baseline[i]:
+            return _WARNED
+    for x in qpos:
+        if not math.isfinite(x):
+            return _NOT_FINITE
+    for x in qvel:
+        if not math.isfinite(x):
+            return _NOT_FINITE
+    return _HEALTHY
 
 
 class CutterObserver(Observer):
@@ -261,49 +290,88 @@ class CutterObserver(Observer):
 
 
 class Recorder(Observer):
-    """One row of every series per ``every``-th tick, read before the tick's physics steps."""
+    """One row of every series per ``every``-th tick, read before the tick's physics steps.
+
+    Each row is written in place into preallocated arrays (row shape and dtype those of the
+    first row's values, doubled when full): a list of copies per value and a final
+    ``np.stack`` cost a Python call and an allocation each. The rows keep whole copies of
+    ``data.xpos``, ``site_xpos``, ``site_xmat``, ``ten_length`` and ``actuator_force`` (a
+    memcpy each) and the plan index; ``arrays`` picks the series out of those afterwards,
+    the same values as picking them per row.
+    """
+
+    _KEYS = ("t", "plan_index", "xpos", "site_xpos", "site_xmat", "ten_length", "actuator_force")
+    _TAIL = ("sample_rel_pos", "sample_welded", "cells_remaining", "spindle_speed", "contact_force")
 
     def __init__(self, every: int, cutter: CutterObserver) -> None:
         self.every = max(1, int(every))
         self.cutter = cutter.cutter
-        self.rows: dict[str, list[Any]] = {}
+        self.n = 0  # rows recorded
+        self.keys: list[str] = []
+        self.columns: list[np.ndarray] = []
+        self.plan: TaskPlan | None = None
+        self.handles: SceneHandles | None = None
 
-    def _add(self, key: str, value: Any) -> None:
-        self.rows.setdefault(key, []).append(np.array(value, copy=True))
+    def _allocate(self, sim: Simulation, values: list[Any]) -> None:
+        """Name the first row's ``values`` (in ``before_tick``'s order) and allocate their arrays."""
+        self.keys = [*self._KEYS, *(f"{arm}_{name}" for arm in sim.handles.arms for name in ("w_cmd", "cable_common_mode")),
+                     *self._TAIL]
+        firsts = [np.asarray(value) for value in values]
+        self.columns = [np.empty((256, *first.shape), dtype=first.dtype) for first in firsts]
+        self.plan, self.handles = sim.plan, sim.handles
 
     def before_tick(self, sim: Simulation) -> None:
         if sim.tick % self.every:
             return
-        data, h, plan, i = sim.data, sim.handles, sim.plan, sim.plan_index
-        commands = sim.commands
-        add = self._add
-        add("t", data.time)
-        add("stage", plan.stage[i])
-        add("plan_index", i)
+        data, h, commands = sim.data, sim.handles, sim.commands
+        xpos = data.xpos
+        values: list[Any] = [data.time, sim.plan_index, xpos, data.site_xpos, data.site_xmat, data.ten_length,
+                             data.actuator_force]
         for arm in h.arms:
-            site = h.tcp_site[arm]
             n_sections = len(h.cable_actuators[arm]) // 3
-            add(f"{arm}_q_plan", plan.q(arm)[i])
             bending = None if commands is None else commands.bending.get(arm)
-            add(f"{arm}_w_cmd", np.full(2 * n_sections, np.nan) if bending is None else bending)
-            add(f"{arm}_tcp_plan", plan.tcp(arm)[i])
-            add(f"{arm}_tcp_pos", data.site_xpos[site])
-            add(f"{arm}_tcp_mat", data.site_xmat[site].reshape(3, 3))
-            add(f"{arm}_cable_length", data.ten_length[h.cable_tendons[arm]])
-            add(f"{arm}_cable_tension", -data.actuator_force[h.cable_actuators[arm]])
             common = None if commands is None else commands.common_mode.get(arm)
-            add(f"{arm}_cable_common_mode", np.full(n_sections, np.nan) if common is None else common)
-            add(f"{arm}_disk_pos", data.xpos[h.disk_bodies[arm]])
-        add("sample_pos", data.xpos[h.sample_body])
+            values.append(np.full(2 * n_sections, np.nan) if bending is None else bending)
+            values.append(np.full(n_sections, np.nan) if common is None else common)
         R = data.xmat[h.plate_body].reshape(3, 3)
-        add("sample_rel_pos", R.T @ (data.xpos[h.sample_body] - data.xpos[h.plate_body]))
-        add("sample_welded", bool(data.eq_active[h.sample_weld]))
-        add("cells_remaining", self.cutter.cells_remaining)
-        add("spindle_speed", data.qvel[h.spindle_dof])
-        add("contact_force", contact_forces(sim.model, data, h.geom_kind))
+        values += (R.T @ (xpos[h.sample_body] - xpos[h.plate_body]), bool(data.eq_active[h.sample_weld]),
+                   self.cutter.cells_remaining, data.qvel[h.spindle_dof], contact_forces(sim.model, data, h.geom_kind))
+        if not self.columns:
+            self._allocate(sim, values)
+        elif sim.plan is not self.plan or h is not self.handles:
+            raise RuntimeError("Recorder: the simulation's plan or handles changed during the run")
+        n, columns = self.n, self.columns
+        if n == len(columns[0]):
+            self.columns = columns = [np.concatenate([c, np.empty_like(c)]) for c in columns]
+        for column, value in zip(columns, values, strict=True):
+            column[n] = value
+        self.n = n + 1
 
     def arrays(self) -> dict[str, np.ndarray]:
-        return {key: np.stack(rows) for key, rows in self.rows.items()}
+        """Every series, (rows, ...) each; none before the first row."""
+        if not self.n:
+            return {}
+        rows = {key: column[: self.n] for key, column in zip(self.keys, self.columns, strict=True)}
+        plan, h = self.plan, self.handles
+        assert plan is not None and h is not None
+        index = rows["plan_index"]
+        xpos = rows["xpos"]
+        out = {"t": rows["t"].copy(), "stage": plan.stage[index], "plan_index": index.copy()}
+        for arm in h.arms:
+            site = h.tcp_site[arm]
+            out |= {
+                f"{arm}_q_plan": plan.q(arm)[index],
+                f"{arm}_w_cmd": rows[f"{arm}_w_cmd"].copy(),
+                f"{arm}_tcp_plan": plan.tcp(arm)[index],
+                f"{arm}_tcp_pos": rows["site_xpos"][:, site],
+                f"{arm}_tcp_mat": rows["site_xmat"][:, site].reshape(self.n, 3, 3),
+                f"{arm}_cable_length": rows["ten_length"][:, h.cable_tendons[arm]],
+                f"{arm}_cable_tension": -rows["actuator_force"][:, h.cable_actuators[arm]],
+                f"{arm}_cable_common_mode": rows[f"{arm}_cable_common_mode"].copy(),
+                f"{arm}_disk_pos": xpos[:, h.disk_bodies[arm]],
+            }
+        out["sample_pos"] = xpos[:, h.sample_body]
+        return out | {key: rows[key].copy() for key in self._TAIL}
 
 
 class VideoObserver(Observer):
@@ -350,18 +418,23 @@ class ProgressObserver(Observer):
 
 # ------------------------------------------------------------------ contact forces
 def contact_forces(model: mujoco.MjModel, data: mujoco.MjData, kind: np.ndarray) -> np.ndarray:
-    """Normal contact force (N) summed per CONTACT_KINDS entry: cutter, gripper, arm–arm, arm–world."""
+    """Normal contact force (N) summed per CONTACT_KINDS entry: cutter, gripper, arm–arm, arm–world.
+
+    One compiled pass (``_contact_sums``) sorts the contacts and sums each kind's forces
+    as ``normal[mask].sum()`` did (numpy's pairwise order, so bit-identical).
+    """
     n = data.ncon
     if n == 0:
         return np.zeros(len(CONTACT_KINDS))
-    normal = normal_forces(model, data, n)
-    pair = kind[data.contact.geom[:n]]
-    low, high = pair.min(axis=1), pair.max(axis=1)
-    cutter = (low == GeomKind.CUTTER) | (high == GeomKind.CUTTER)
-    gripper = ~cutter & ((low == GeomKind.GRIPPER) | (high == GeomKind.GRIPPER))
-    arm_arm = (low == GeomKind.FIRST_ARM) & (high == GeomKind.SECOND_ARM)
-    arm_world = (low == GeomKind.OTHER) & ((high == GeomKind.FIRST_ARM) | (high == GeomKind.SECOND_ARM))
-    return np.array([normal[mask].sum() for mask in (cutter, gripper, arm_arm, arm_world)])
+    contact = data.contact
+    out = np.zeros(len(CONTACT_KINDS))
+    if data.nefc == 0:
+        return out  # every normal force is zero (as normal_forces gives), and so is each sum
+    if model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC:
+        _kernels()[0](contact.geom, contact.efc_address, data.efc_force, _NO_FORCES, kind, n, out)
+    else:
+        _kernels()[0](contact.geom, contact.efc_address, data.efc_force, normal_forces(model, data, n), kind, n, out)
+    return out
 
 
 def normal_forces(model: mujoco.MjModel, data: mujoco.MjData, n: int) -> np.ndarray:
@@ -381,3 +454,124 @@ def normal_forces(model: mujoco.MjModel, data: mujoco.MjData, n: int) -> np.ndar
         mujoco.mj_contactForce(model, data, i, force)
         out[i] = abs(force[0])
     return out
+
+
+_OTHER, _CUTTER, _GRIPPER = int(GeomKind.OTHER), int(GeomKind.CUTTER), int(GeomKind.GRIPPER)
+_FIRST_ARM, _SECOND_ARM = int(GeomKind.FIRST_ARM), int(GeomKind.SECOND_ARM)
+_NO_FORCES = np.zeros(0)  # ``_contact_sums``'s ``normal`` for elliptic cones: it reads efc_force itself
+
+
+def _block_sum(a: np.ndarray, start: int, n: int) -> float:  # pragma: no cover - numba
+    """numpy's float64 pairwise_sum of ``a[start:start + n]`` for n ≤ 128: sequential below 8,
+    else 8 accumulators over the whole multiples of 8 and the rest added in order."""
+    if n < 8:
+        res = 0.0
+        for i in range(start, start + n):
+            res += a[i]
+        return res
+    r0, r1, r2, r3 = a[start], a[start + 1], a[start + 2], a[start + 3]
+    r4, r5, r6, r7 = a[start + 4], a[start + 5], a[start + 6], a[start + 7]
+    i = 8
+    whole = n - n % 8
+    while i < whole:
+        j = start + i
+        r0 += a[j]
+        r1 += a[j + 1]
+        r2 += a[j + 2]
+        r3 += a[j + 3]
+        r4 += a[j + 4]
+        r5 += a[j + 5]
+        r6 += a[j + 6]
+        r7 += a[j + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[start + i]
+        i += 1
+    return res
+
+
+def _pairwise_sum(a: np.ndarray, n: int) -> float:  # pragma: no cover - numba
+    """numpy's float64 ``add.reduce`` of ``a[:n]``, in its order: 0.0 + pairwise_sum, which halves
+    a range of over 128 (the first half a multiple of 8) and adds the halves' sums.
+
+    The recursion is unrolled onto an explicit stack (numba's on-disk cache crashed loading
+    the recursive version).
+    """
+    if n <= 128:
+        return 0.0 + _block_sum(a, 0, n)
+    starts = np.empty(64, dtype=np.int64)
+    sizes = np.empty(64, dtype=np.int64)
+    phase = np.zeros(64, dtype=np.int64)  # 0: split next, 1: right half next, 2: add the halves
+    sums = np.empty(64)
+    top, n_sums = 0, 0
+    starts[0], sizes[0], phase[0] = 0, n, 0
+    while top >= 0:
+        start, size = starts[top], sizes[top]
+        half = size // 2
+        half -= half % 8
+        if size <= 128:
+            sums[n_sums] = _block_sum(a, start, size)
+            n_sums += 1
+            top -= 1
+        elif phase[top] == 0:
+            phase[top] = 1
+            top += 1
+            starts[top], sizes[top], phase[top] = start, half, 0
+        elif phase[top] == 1:
+            phase[top] = 2
+            top += 1
+            starts[top], sizes[top], phase[top] = start + half, size - half, 0
+        else:
+            n_sums -= 1
+            sums[n_sums - 1] = sums[n_sums - 1] + sums[n_sums]
+            top -= 1
+    return 0.0 + sums[0]
+
+
+def _contact_sums(geom: np.ndarray, address: np.ndarray, efc_force: np.ndarray, normal: np.ndarray, kind: np.ndarray,
+                  n: int, out: np.ndarray) -> None:  # pragma: no cover - numba
+    """``out[k]`` = the summed normal force of the first ``n`` contacts of CONTACT_KINDS entry k.
+
+    ``normal``: the contacts' normal forces, or empty to read them from ``efc_force`` at the
+    contacts' first constraint row (elliptic cones; 0 for a contact without rows).
+    """
+    picked = np.empty((4, n))
+    count = np.zeros(4, dtype=np.int64)
+    for i in range(n):
+        if normal.shape[0] == 0:
+            row = address[i]
+            force = abs(efc_force[max(row, 0)]) if row >= 0 else 0.0
+        else:
+            force = normal[i]
+        a, b = kind[geom[i, 0]], kind[geom[i, 1]]
+        low, high = min(a, b), max(a, b)
+        # The kinds are exclusive, in the order of CONTACT_KINDS (a cutter contact is never a gripper one).
+        if low == _CUTTER or high == _CUTTER:
+            k = 0
+        elif low == _GRIPPER or high == _GRIPPER:
+            k = 1
+        elif low == _FIRST_ARM and high == _SECOND_ARM:
+            k = 2
+        elif low == _OTHER and (high == _FIRST_ARM or high == _SECOND_ARM):
+            k = 3
+        else:
+            continue
+        picked[k, count[k]] = force
+        count[k] += 1
+    for k in range(4):
+        out[k] = _pairwise_sum(picked[k], count[k])
+
+
+_KERNELS: list[Any] = []
+
+
+def _kernels() -> list[Any]:
+    """[``_contact_sums``, ``_health_code``] compiled by numba (or loaded from its cache) on first use."""
+    if not _KERNELS:
+        from ..model.jit import jit_in_place, sigint_deferred
+
+        with sigint_deferred():
+            jit_in_place(globals(), ("_block_sum", "_pairwise_sum", "_contact_sums", "_health_code"))
+            _KERNELS.extend((_contact_sums, _health_code))
+    return _KERNELS
