@@ -12,6 +12,10 @@ How: the compiled run model replaces every arm cable's ``<spatial>`` tendon by a
 tendon length, Jacobian and passive force are exactly 0 and the sparsity of ``ten_J`` and
 of the actuator moments is the spatial one). MuJoCo's passive-force callback (shared with
 cable friction, ``friction._passive_callback``) then writes, before the actuation stage,
+from MuJoCo's own kinematics of the step (the hole sites' positions, each hinge's axis and
+anchor: no trigonometry), piece by piece (length |x_c − x_p| in MuJoCo's arithmetic for a
+site-to-site segment, so the lengths are the spatial tendon's bit for bit; gradient
+u·(a × (x_c − anchor)) over the ≤ 3 hinges of the segment the piece spans):
 
 * ``ten_length``, ``ten_J`` (the scatter of the pieces' local gradients), ``ten_velocity``;
 * each cable actuator's ``actuator_length``/``actuator_moment``/``actuator_velocity``
@@ -53,23 +57,51 @@ _FIXED_ATTRIBUTES = frozenset({
 })
 
 
-_cable_pieces = fr._cable_pieces  # rebound to the compiled kernel by kernels()
+def _native_pieces(site_xpos, xaxis, xanchor, xmat, piece_psite, piece_csite, piece_seg, seg_jnt, seg_njnt,
+                   piece_base, length, direction, grad):  # fmt: skip
+    """Per piece from MuJoCo's own kinematics (position stage): length |x_c − x_p| (MuJoCo's
+    arithmetic for a site-to-site tendon segment), the unit direction in the arm's base frame
+    (what cable friction's wrap angles need) and ∂l/∂q_k = u·(a_k × (x_c − anchor_k)) for the
+    hinges k of the segment the piece spans."""
+    for i in range(piece_seg.shape[0]):
+        p, c = piece_psite[i], piece_csite[i]
+        d0 = site_xpos[c, 0] - site_xpos[p, 0]
+        d1 = site_xpos[c, 1] - site_xpos[p, 1]
+        d2 = site_xpos[c, 2] - site_xpos[p, 2]
+        n = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        length[i] = n
+        if n < 1e-15:  # coincident holes (never in a built arm): MuJoCo's mju_normalize3 convention
+            u0, u1, u2 = 1.0, 0.0, 0.0
+        else:
+            u0, u1, u2 = d0 / n, d1 / n, d2 / n
+        b = piece_base[i]
+        for r in range(3):
+            direction[i, r] = xmat[b, r] * u0 + xmat[b, 3 + r] * u1 + xmat[b, 6 + r] * u2
+        g = piece_seg[i]
+        for k in range(3):
+            if k < seg_njnt[g]:
+                j = seg_jnt[g, k]
+                r0 = site_xpos[c, 0] - xanchor[j, 0]
+                r1 = site_xpos[c, 1] - xanchor[j, 1]
+                r2 = site_xpos[c, 2] - xanchor[j, 2]
+                a0, a1, a2 = xaxis[j, 0], xaxis[j, 1], xaxis[j, 2]
+                grad[i, k] = u0 * (a1 * r2 - a2 * r1) + u1 * (a2 * r0 - a0 * r2) + u2 * (a0 * r1 - a1 * r0)
+            else:
+                grad[i, k] = 0.0
 
 
 def _native_cables(
-    qpos, qvel, seg_ball, seg_njnt, seg_qadr, seg_qref, seg_axes, seg_bpos, seg_bmat, seg_jpos,
-    piece_seg, piece_parent, piece_child, cable_start, cable_end, tendon_ids, piece_jadr,
+    qvel, site_xpos, xaxis, xanchor, xmat, piece_psite, piece_csite, seg_jnt, seg_njnt, seg_ball, piece_base,
+    piece_seg, cable_start, cable_end, tendon_ids, piece_jadr,
     ten_rowadr, ten_rownnz, ten_colind, ten_stiffness, ten_damping, ten_spring,
     act_ids, act_owner, act_gear, moment_rowadr,
-    seg_R, seg_w, length, direction, grad,
+    length, direction, grad,
     ten_length, ten_J, ten_velocity, actuator_length, actuator_velocity, actuator_moment,
     qfrc_spring, qfrc_damper, qfrc_passive,
 ):  # fmt: skip
     """Exact cable lengths, Jacobians, velocities, actuator transmissions and tendon passive forces."""
-    _cable_pieces(
-        qpos, seg_ball, seg_njnt, seg_qadr, seg_qref, seg_axes, seg_bpos, seg_bmat, seg_jpos,
-        piece_seg, piece_parent, piece_child, seg_R, seg_w, length, direction, grad,
-    )  # fmt: skip
+    _native_pieces(site_xpos, xaxis, xanchor, xmat, piece_psite, piece_csite, piece_seg, seg_jnt, seg_njnt,
+                   piece_base, length, direction, grad)
     for c in range(cable_start.shape[0]):
         t = tendon_ids[c]
         adr, nnz = ten_rowadr[t], ten_rownnz[t]
@@ -118,8 +150,7 @@ _KERNELS: dict[str, Any] = {}
 def kernels() -> dict[str, Any]:
     """The compiled kernel (numba; compiled or loaded from its disk cache on first use)."""
     if not _KERNELS:
-        globals()["_cable_pieces"] = fr.kernels()["cable_pieces"]
-        jit_in_place(globals(), ("_native_cables",))
+        jit_in_place(globals(), ("_native_pieces", "_native_cables"))
         _KERNELS["native_cables"] = _native_cables
     return _KERNELS
 
@@ -187,6 +218,24 @@ class NativeCables:
                     if dof not in column:
                         raise ValueError(f"native cables: tendon {r.names[c]!r} has no Jacobian entry for dof {dof}")
                     self.piece_jadr[i, k] = column[dof]
+        # The sites each piece joins, the hinges of each segment, the arm base each cable leaves.
+        psite, csite, base = [], [], []
+        for t in r.tendon_ids:
+            adr, num = int(spatial_model.tendon_adr[t]), int(spatial_model.tendon_num[t])
+            sites = [int(spatial_model.wrap_objid[adr + k]) for k in range(num)]
+            psite += sites[:-1]
+            csite += sites[1:]
+            base += [int(spatial_model.site_bodyid[sites[0]])] * (num - 1)
+        self.piece_psite = np.array(psite, dtype=np.int64)
+        self.piece_csite = np.array(csite, dtype=np.int64)
+        self.piece_base = np.array(base, dtype=np.int64)
+        self.seg_jnt = np.zeros((len(r.seg_body), 3), dtype=np.int64)
+        for g, body in enumerate(r.seg_body):
+            for k in range(int(r.seg_njnt[g])):
+                self.seg_jnt[g, k] = int(spatial_model.body_jntadr[body]) + k
+        # Directions are written in the arm's base frame: friction's wrap angles then need no
+        # segment rotations (its seg_R stays the identity; the routing's frames are not used).
+        self.kernel.seg_R[:] = np.eye(3)
         trn_tendon = int(mujoco.mjtTrn.mjTRN_TENDON)
         owner = {int(t): c for c, t in enumerate(r.tendon_ids)}
         acts = [a for a in range(model.nu) if model.actuator_trntype[a] == trn_tendon and int(model.actuator_trnid[a, 0]) in owner]
@@ -218,6 +267,7 @@ class NativeCables:
         data = mujoco.MjData(self.model)
         handle = _NativeData(self, data)
         with sigint_deferred():  # compile (or load) the kernel here, not inside the C callback
+            mujoco.mj_kinematics(self.model, data)
             handle.apply(self.model, data)
         fr.register_passive(data, handle, first=True)
         return data
@@ -235,21 +285,21 @@ class _NativeData:
         self._model_ref = cables._model_ref
         self._data_ref = weakref.ref(data)
         self.error: BaseException | None = None
-        self._views = (data.qpos, data.qvel, data.ten_length, data.ten_J, data.ten_velocity, data.actuator_length,
-                       data.actuator_velocity, data.actuator_moment, data.moment_rowadr, data.qfrc_spring,
-                       data.qfrc_damper, data.qfrc_passive)
+        self._views = (data.qvel, data.site_xpos, data.xaxis, data.xanchor, data.xmat, data.ten_length, data.ten_J,
+                       data.ten_velocity, data.actuator_length, data.actuator_velocity, data.actuator_moment,
+                       data.moment_rowadr, data.qfrc_spring, data.qfrc_damper, data.qfrc_passive)
 
     def apply(self, model: Any, data: Any) -> None:  # noqa: ARG002 - the passive hook's signature
         n, k = self.cables, self.cables.kernel
         r = k.routing
-        (qpos, qvel, ten_length, ten_J, ten_velocity, actuator_length, actuator_velocity, actuator_moment,
-         moment_rowadr, qfrc_spring, qfrc_damper, qfrc_passive) = self._views
+        (qvel, site_xpos, xaxis, xanchor, xmat, ten_length, ten_J, ten_velocity, actuator_length, actuator_velocity,
+         actuator_moment, moment_rowadr, qfrc_spring, qfrc_damper, qfrc_passive) = self._views
         n._fn(
-            qpos, qvel, r.seg_ball, r.seg_njnt, r.seg_qadr, r.seg_qref, r.seg_axes, r.seg_bpos, r.seg_bmat, r.seg_jpos,
-            r.piece_seg, r.piece_parent, r.piece_child, r.cable_start, r.cable_end, r.tendon_ids, n.piece_jadr,
+            qvel, site_xpos, xaxis, xanchor, xmat, n.piece_psite, n.piece_csite, n.seg_jnt, r.seg_njnt, r.seg_ball,
+            n.piece_base, r.piece_seg, r.cable_start, r.cable_end, r.tendon_ids, n.piece_jadr,
             n.ten_rowadr, n.ten_rownnz, n.ten_colind, n.ten_stiffness, n.ten_damping, n.ten_spring,
             n.act_ids, n.act_owner, n.act_gear, moment_rowadr,
-            k.seg_R, k.seg_w, k.length, k.direction, k.grad,
+            k.length, k.direction, k.grad,
             ten_length, ten_J, ten_velocity, actuator_length, actuator_velocity, actuator_moment,
             qfrc_spring, qfrc_damper, qfrc_passive,
         )  # fmt: skip
