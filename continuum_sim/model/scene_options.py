@@ -140,7 +140,8 @@ class FoamOptions:
     min_cutting_speed: float = 50.0  # rad/s: a slower spindle rubs instead of cutting
     block_stiffness: float = 2000.0  # N/m, uncut foam against a cutter that does not cut (assumed, numerically stable at 4 ms)
     block_damping: float = 10.0  # N·s/m
-    connectivity_period: float = 0.1  # s between connectivity checks (only after material was removed; ~0.1 ms each at 1 mm compiled, ~3 ms with scipy.ndimage.label when native is false)
+    # s between connectivity checks (only after material was removed): ~0.1 ms each at 1 mm compiled, ~3 ms with scipy.ndimage.label (native false)
+    connectivity_period: float = 0.1
     grip_radius: float = 0.006  # m: the material under the jaws, around the grasp point
     # The voxel work of each physics step in compiled numba kernels (model/cutting_kernels.py);
     # false: the numpy path. Both give bit-identical results (tests/test_cutting_native.py).

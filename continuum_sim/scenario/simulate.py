@@ -295,7 +295,7 @@ class Recorder(Observer):
     Each row is written in place into preallocated arrays (row shape and dtype those of the
     first row's values, doubled when full): a list of copies per value and a final
     ``np.stack`` cost a Python call and an allocation each. The rows keep whole copies of
-    ``data.xpos``, ``site_xpos``, ``site_xmat``, ``ten_length`` and ``actuator_force`` (a
+    ``data.xpos``, the tool sites' ``site_xpos``/``site_xmat``, ``ten_length`` and ``actuator_force`` (a
     memcpy each) and the plan index; ``arrays`` picks the series out of those afterwards,
     the same values as picking them per row.
     """
@@ -311,6 +311,7 @@ class Recorder(Observer):
         self.columns: list[np.ndarray] = []
         self.plan: TaskPlan | None = None
         self.handles: SceneHandles | None = None
+        self._tcp_sites = np.zeros(0, dtype=int)
 
     def _allocate(self, sim: Simulation, values: list[Any]) -> None:
         """Name the first row's ``values`` (in ``before_tick``'s order) and allocate their arrays."""
@@ -319,14 +320,17 @@ class Recorder(Observer):
         firsts = [np.asarray(value) for value in values]
         self.columns = [np.empty((256, *first.shape), dtype=first.dtype) for first in firsts]
         self.plan, self.handles = sim.plan, sim.handles
+        self._tcp_sites = np.array([sim.handles.tcp_site[arm] for arm in sim.handles.arms])
 
     def before_tick(self, sim: Simulation) -> None:
         if sim.tick % self.every:
             return
         data, h, commands = sim.data, sim.handles, sim.commands
         xpos = data.xpos
-        values: list[Any] = [data.time, sim.plan_index, xpos, data.site_xpos, data.site_xmat, data.ten_length,
-                             data.actuator_force]
+        tcp = self._tcp_sites if self.columns else np.array([h.tcp_site[arm] for arm in h.arms])
+        # Only the tool sites: a native-cable arm also has ~380 hole sites (28 kB of site_xmat per row).
+        values: list[Any] = [data.time, sim.plan_index, xpos, data.site_xpos[tcp], data.site_xmat[tcp],
+                             data.ten_length, data.actuator_force]
         for arm in h.arms:
             n_sections = len(h.cable_actuators[arm]) // 3
             bending = None if commands is None else commands.bending.get(arm)
@@ -357,14 +361,13 @@ class Recorder(Observer):
         index = rows["plan_index"]
         xpos = rows["xpos"]
         out = {"t": rows["t"].copy(), "stage": plan.stage[index], "plan_index": index.copy()}
-        for arm in h.arms:
-            site = h.tcp_site[arm]
+        for column, arm in enumerate(h.arms):  # the tool sites were recorded in the arms' order
             out |= {
                 f"{arm}_q_plan": plan.q(arm)[index],
                 f"{arm}_w_cmd": rows[f"{arm}_w_cmd"].copy(),
                 f"{arm}_tcp_plan": plan.tcp(arm)[index],
-                f"{arm}_tcp_pos": rows["site_xpos"][:, site],
-                f"{arm}_tcp_mat": rows["site_xmat"][:, site].reshape(self.n, 3, 3),
+                f"{arm}_tcp_pos": rows["site_xpos"][:, column],
+                f"{arm}_tcp_mat": rows["site_xmat"][:, column].reshape(self.n, 3, 3),
                 f"{arm}_cable_length": rows["ten_length"][:, h.cable_tendons[arm]],
                 f"{arm}_cable_tension": -rows["actuator_force"][:, h.cable_actuators[arm]],
                 f"{arm}_cable_common_mode": rows[f"{arm}_cable_common_mode"].copy(),
