@@ -167,10 +167,12 @@ class ArmController:
         self.last_command: list[float] = []  # bending coordinates of the last set-points (for recording)
         # The tick runs through the numba kernels (``control_kernels``, bit-identical to the
         # Python methods below, which stay as the reference and the fallback); False: Python.
-        from .control_kernels import kernels  # numba: imported when a controller is built, not with the config
+        from .control_kernels import dposv_address, kernels  # numba: imported when a controller is built, not with the config
 
         self.compiled = True
         self._kernels = kernels()
+        self._dposv = dposv_address()
+        self._uplo, self._lapack_ints = np.array([ord("U")], dtype=np.uint8), np.zeros(5, dtype=np.int32)
         S, m = geometry.n_sections, 5 if roll_free else 6
         self._section_length = np.array([L for L, _ in self._pose._sections])
         self._section_segments = np.array([n for _, n in self._pose._sections])
@@ -183,9 +185,7 @@ class ArmController:
         self._r = np.zeros(3)
         self._R, self._p, self._J_flat = np.zeros(9), np.zeros(3), np.zeros(6 * 2 * S)
         self._J, self._error, self._A = np.zeros((m, 2 * S)), np.zeros(m), np.zeros((m, m))
-        self._x, self._no_tensions = np.zeros(m), np.zeros(3 * S)  # placeholders for ticks that do not use them
-        self._plan, self._pos, self._mat = np.eye(4), np.zeros(3), np.eye(3)
-        self._max_correction = float(self.max_correction)
+        self._x, self._a_work, self._no_tensions = np.zeros(m), np.zeros((m, m)), np.zeros(3 * S)
 
     def _commanded(self, q_plan) -> list[float]:
         # Scalar per section: this runs twice per arm per control tick.
@@ -243,7 +243,7 @@ class ArmController:
     def _update_compiled(
         self, q_plan: Array, tcp_plan: Array, tcp_pos: Array, tcp_mat: Array, dt: float, tensions: Array | None
     ) -> Array:
-        """``update`` after the holding logic in two numba calls around LAPACK's dposv (same numbers as the Python methods).
+        """``update`` after the holding logic in one numba call (same numbers as the Python methods).
 
         The set-points are computed every tick: the Python path's reuse while (w, extra) stand
         still only saved the cable kernel, and returns the same numbers.
@@ -251,38 +251,43 @@ class ArmController:
         k, cfg, w = self._kernels, self.config, self._w
         q = np.asarray(q_plan, dtype=float)
         integrate = cfg.mode == "closed" and dt > 0.0
-        plan, pos, mat = self._plan, self._pos, self._mat
-        if integrate:
-            plan = np.asarray(tcp_plan, dtype=float)
-            pos = np.asarray(tcp_pos, dtype=float)
-            mat = np.asarray(tcp_mat, dtype=float).reshape(3, 3)
+        keep = cfg.mode == "closed" and tensions is not None and dt > 0.0 and cfg.min_tension > 0.0
+        measured = self._no_tensions if tensions is None else np.asarray(tensions, dtype=float)
+        lengths = np.empty(len(self.offset))
+        c = self._cables
+        cables = (
+            self._cable_segments, self._cable_halves, c._pair_section, c._pair_holes, c._gather,
+            self.offset, self._cable_section, lengths,
+        )
+        step = (
+            self._gain_matrix, self.gain is not None, cfg.outer_gain, dt, cfg.outer_proportional, float(self.max_correction)
+        )
+        tension = (keep, measured, self.extra, self.cable_kp, cfg.min_tension, cfg.tension_gain, cfg.max_extra_tension)
+        if not integrate:
+            k["commanded"](q, self.correction, self.proportional, self._max_bend_array, w)
+            k["tick_end"](False, self._J, self._x, self.correction, self.proportional, *step, q, self._max_bend_array, w,
+                          *tension, *cables)
+            self.last_command = w.tolist()
+            return lengths
+        plan = np.asarray(tcp_plan, dtype=float)
+        pos = np.asarray(tcp_pos, dtype=float)
+        mat = np.asarray(tcp_mat, dtype=float).reshape(3, 3)
         system = (
             self._section_length, self._section_segments, self.tool_length, cfg.orientation_weight, self.roll_free,
             self._regulariser, self._r,
         )
         outputs = (self._R, self._p, self._J_flat, self._J, self._error, self._A)
-        x = self._x
-        if integrate:
-            if not k["tick_begin"](
-                q, self.correction, self.proportional, self._max_bend_array, w, True, plan, pos, mat, self._base_rot,
-                *system, *outputs,
-            ):  # beyond 3 rad: the rotation error from the robust log (Python), then the same system
+        status = k["tick"](
+            q, self.correction, self.proportional, self._max_bend_array, w, plan, pos, mat, self._base_rot,
+            *system, *outputs, self._dposv, self._uplo, self._lapack_ints, self._a_work, self._x, *step, *tension, *cables,
+        )
+        if status:  # the rare cases, as the Python path takes them; w holds the commanded shape
+            if status == 1:  # beyond 3 rad: the rotation error from the robust log, then the same system
                 self._r[:] = _rotation_error_scalar(plan[:3, :3].ravel().tolist(), mat.ravel().tolist())
                 k["tick_system"](plan, pos, mat, self._base_rot, w, *system, True, *outputs)
-            x = _solve_spd(self._A, self._error)
-        else:
-            k["commanded"](q, self.correction, self.proportional, self._max_bend_array, w)
-        keep = cfg.mode == "closed" and tensions is not None and dt > 0.0 and cfg.min_tension > 0.0
-        lengths = np.empty(len(self.offset))
-        c = self._cables
-        k["tick_end"](
-            integrate, self._J, x, self.correction, self.proportional, self._gain_matrix, self.gain is not None,
-            cfg.outer_gain, dt, cfg.outer_proportional, self._max_correction, q, self._max_bend_array, w,
-            keep, self._no_tensions if tensions is None else np.asarray(tensions, dtype=float), self.extra,
-            self.cable_kp, cfg.min_tension, cfg.tension_gain, cfg.max_extra_tension,
-            self._cable_segments, self._cable_halves, c._pair_section, c._pair_holes, c._gather,
-            self.offset, self._cable_section, lengths,
-        )
+            x = _solve_spd(self._A, self._error)  # LAPACK, or numpy's solve where A is not positive definite
+            k["tick_end"](True, self._J, x, self.correction, self.proportional, *step, q, self._max_bend_array, w,
+                          *tension, *cables)
         self.last_command = w.tolist()
         return lengths
 

@@ -14,7 +14,8 @@ numbers (``tests/test_control_kernels.py`` compares them on random inputs):
 * ``J.T @ x``, ``gain @ step`` and the cable gather (``dgemv``) call BLAS through
   ``np.dot`` as numpy does (SciPy's OpenBLAS; numpy's is its own build of the same library);
 * ``np.einsum`` over three terms sums ``(t0 + t2) + t1`` (its two-lane accumulation);
-* the 6×6 solve stays LAPACK's ``dposv`` called from Python (``control._solve_spd``).
+* the 6×6 solve is LAPACK's ``dposv``, the routine ``control._solve_spd`` calls, called by
+  its address (``_dposv_call``).
 
 The BLAS orders were read off this machine's OpenBLAS (AVX-512/FMA kernels); the equality
 tests would show if another platform's kernels summed differently.
@@ -45,6 +46,52 @@ def _fma(typingctx: Any, a: Any, b: Any, c: Any) -> Any:  # noqa: ARG001 - numba
         return builder.fma(*args)
 
     return types.float64(types.float64, types.float64, types.float64), codegen
+
+
+@intrinsic
+def _dposv_call(typingctx: Any, addr: Any, uplo: Any, ints: Any, a: Any, b: Any) -> Any:  # noqa: ARG001 - numba intrinsic
+    """LAPACK dposv(uplo, n, nrhs, a, lda, b, ldb, info) through its address ``addr`` (an int, given at run time).
+
+    ``ints`` (int32): n, nrhs, lda, ldb, info. The address is an argument, not a constant,
+    so the compiled code stays cacheable; it is SciPy's ``cython_lapack.dposv``, the same
+    OpenBLAS routine ``scipy.linalg.lapack.dposv`` (``control._solve_spd``) calls.
+    """
+    from llvmlite import ir
+    from numba.core import types
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        i8p, i32p, f64p = ir.IntType(8).as_pointer(), ir.IntType(32).as_pointer(), ir.DoubleType().as_pointer()
+        data = [context.make_array(t)(context, builder, v).data for t, v in zip(signature.args[1:], args[1:])]
+        n = builder.bitcast(data[1], i32p)
+
+        def at(k: int) -> Any:
+            return builder.gep(n, [ir.Constant(ir.IntType(64), k)])
+
+        fnty = ir.FunctionType(ir.VoidType(), [i8p, i32p, i32p, f64p, i32p, f64p, i32p, i32p])
+        fn = builder.inttoptr(args[0], fnty.as_pointer())
+        a_ptr, b_ptr = builder.bitcast(data[2], f64p), builder.bitcast(data[3], f64p)
+        builder.call(fn, [builder.bitcast(data[0], i8p), at(0), at(1), a_ptr, at(2), b_ptr, at(3), at(4)])
+        return context.get_dummy_value()
+
+    return types.void(addr, uplo, ints, a, b), codegen
+
+
+def dposv_address() -> int:
+    """Address of SciPy's ``cython_lapack.dposv`` (for ``_tick``)."""
+    from numba.extending import get_cython_function_address
+
+    return int(get_cython_function_address("scipy.linalg.cython_lapack", "dposv"))
+
+
+def _solve_spd(addr: int, uplo: np.ndarray, ints: np.ndarray, A: np.ndarray, a_work: np.ndarray, x: np.ndarray) -> int:
+    """x ← A⁻¹x by dposv on a copy of A (A symmetric: row-major = column-major); returns LAPACK's info."""
+    m = A.shape[0]
+    for i in range(m):
+        for j in range(m):
+            a_work[i, j] = A[j, i]
+    ints[0], ints[1], ints[2], ints[3], ints[4] = m, 1, m, m, 0
+    _dposv_call(addr, uplo, ints, a_work, x)  # type: ignore[call-arg]
+    return int(ints[4])
 
 
 def _hypot(a: float, b: float) -> float:
@@ -441,6 +488,38 @@ def _tick_end(  # noqa: PLR0913
     _set_points(w, cable_segments, halves, pair_section, pair_holes, gather, offset, extra, cable_section, out)
 
 
+def _tick(  # noqa: PLR0913
+    q_plan: np.ndarray, correction: np.ndarray, proportional: np.ndarray, max_bend: np.ndarray, w: np.ndarray,
+    plan: np.ndarray, pos: np.ndarray, mat: np.ndarray, b: np.ndarray, lengths: np.ndarray,
+    segments: np.ndarray, tool_length: float, ow: float, roll_free: bool, regulariser: np.ndarray, r: np.ndarray,
+    R: np.ndarray, p: np.ndarray, Jflat: np.ndarray, J: np.ndarray, error: np.ndarray, A: np.ndarray,
+    dposv: int, uplo: np.ndarray, ints: np.ndarray, a_work: np.ndarray, x: np.ndarray,
+    gain: np.ndarray, use_gain: bool, outer_gain: float, dt: float, outer_proportional: float, max_correction: float,
+    keep: bool, tensions: np.ndarray, extra: np.ndarray, cable_kp: np.ndarray, min_tension: float,
+    tension_gain: float, max_extra_tension: float,
+    cable_segments: np.ndarray, halves: np.ndarray, pair_section: np.ndarray, pair_holes: np.ndarray,
+    gather: np.ndarray, offset: np.ndarray, cable_section: np.ndarray, out: np.ndarray,
+) -> int:
+    """A whole integrating tick in one call: 0 done; 1 (rotation error beyond 3 rad) or 2 (A not positive
+    definite): stopped before any state changed, with ``w`` commanded (and for 2 the system in J, error, A),
+    for the caller's Python fallback."""
+    if not _tick_begin(
+        q_plan, correction, proportional, max_bend, w, True, plan, pos, mat, b, lengths, segments, tool_length, ow,
+        roll_free, regulariser, r, R, p, Jflat, J, error, A,
+    ):
+        return 1
+    for i in range(error.shape[0]):
+        x[i] = error[i]
+    if _solve_spd(dposv, uplo, ints, A, a_work, x) != 0:
+        return 2
+    _tick_end(
+        True, J, x, correction, proportional, gain, use_gain, outer_gain, dt, outer_proportional, max_correction,
+        q_plan, max_bend, w, keep, tensions, extra, cable_kp, min_tension, tension_gain, max_extra_tension,
+        cable_segments, halves, pair_section, pair_holes, gather, offset, cable_section, out,
+    )
+    return 0
+
+
 def _plan_at(times: np.ndarray, t: float, q: np.ndarray, tcp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``controllers.plan_at``: the sample index and fraction at ``t``, then ``(1 - f)·a + f·b`` (numpy's order)."""
     n = times.shape[0]
@@ -469,11 +548,11 @@ def kernels() -> dict[str, Any]:
             globals(),
             ("_hypot", "_dsinc_over_x", "_one_minus_sinc_over_sq", "_sinc", "_pose_jacobian", "_cable_lengths", "_set_points",
              "_commanded", "_rotation_error", "_tick_system", "_tick_step", "_keep_tension", "_tick_begin", "_tick_end",
-             "_plan_at"),
+             "_plan_at", "_solve_spd", "_tick"),
         )
         _KERNELS.update(
             pose_jacobian=_pose_jacobian, cable_lengths=_cable_lengths, set_points=_set_points, commanded=_commanded,
             tick_system=_tick_system, tick_step=_tick_step, keep_tension=_keep_tension, hypot=_hypot,
-            tick_begin=_tick_begin, tick_end=_tick_end, plan_at=_plan_at,
+            tick_begin=_tick_begin, tick_end=_tick_end, plan_at=_plan_at, solve_spd=_solve_spd, tick=_tick,
         )
     return _KERNELS

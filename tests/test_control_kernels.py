@@ -123,3 +123,27 @@ def test_plan_interpolation_kernel_is_numpys():
         q1, tcp1 = plan_at(times, t, q, tcp)
         assert np.array_equal(q1, (1.0 - f) * q[i0] + f * q[i0 + 1])
         assert np.array_equal(tcp1, (1.0 - f) * tcp[i0] + f * tcp[i0 + 1])
+
+
+def test_solve_is_scipys_dposv():
+    """The kernel's dposv (by address) returns scipy.linalg.lapack.dposv's solution and info, bit for bit."""
+    from scipy.linalg.lapack import dposv
+
+    from continuum_sim.control_kernels import dposv_address
+
+    solve = kernels()["solve_spd"]
+    address, uplo, ints = dposv_address(), np.array([ord("U")], dtype=np.uint8), np.zeros(5, dtype=np.int32)
+    rng = np.random.default_rng(6)
+    for trial in range(2000):
+        m = 5 + trial % 2
+        J = rng.normal(size=(m, 6)) * 10.0 ** rng.uniform(-3.0, 0.0, (m, 1))
+        A = J @ J.T + (1e-4 if trial % 7 else 0.0) * np.eye(m)
+        if trial % 100 == 0:
+            A = -A  # not positive definite: info > 0
+        b = rng.normal(size=m)
+        _, x0, info0 = dposv(A, b)
+        x = b.copy()
+        info = solve(address, uplo, ints, A, np.empty((m, m)), x)
+        assert info == info0
+        if info == 0:
+            assert np.array_equal(x, x0)
