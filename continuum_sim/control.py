@@ -186,7 +186,6 @@ class ArmController:
         self._R, self._p, self._J_flat = np.zeros(9), np.zeros(3), np.zeros(6 * 2 * S)
         self._J, self._error, self._A = np.zeros((m, 2 * S)), np.zeros(m), np.zeros((m, m))
         self._x, self._a_work, self._no_tensions = np.zeros(m), np.zeros((m, m)), np.zeros(3 * S)
-        self._max_correction = float(self.max_correction)
 
     def _commanded(self, q_plan) -> list[float]:
         # Scalar per section: this runs twice per arm per control tick.
@@ -261,7 +260,7 @@ class ArmController:
             self.offset, self._cable_section, lengths,
         )
         step = (
-            self._gain_matrix, self.gain is not None, cfg.outer_gain, dt, cfg.outer_proportional, self._max_correction
+            self._gain_matrix, self.gain is not None, cfg.outer_gain, dt, cfg.outer_proportional, float(self.max_correction)
         )
         tension = (keep, measured, self.extra, self.cable_kp, cfg.min_tension, cfg.tension_gain, cfg.max_extra_tension)
         if not integrate:
