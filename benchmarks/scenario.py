@@ -86,8 +86,8 @@ def _leaves(value: Any, prefix: str = "") -> dict[str, Any]:
 
 
 def max_relative_difference(a: dict[str, Any], b: dict[str, Any]) -> float:
-    """Largest |x − y| / max(|y|, 1e-9) over the numeric leaves of two metric trees (inf if a
-    non-numeric leaf or the key set differs): how far two paths' task metrics are apart."""
+    """Largest |x − y| / max(|y|, 1e-6) over the numeric leaves of two metric trees (inf if a
+    non-numeric leaf or the key set differs; values below 1e-6 in their unit count as round-off): how far two paths' task metrics are apart."""
     la, lb = _leaves(a), _leaves(b)
     if la.keys() != lb.keys():
         return float("inf")
@@ -99,7 +99,7 @@ def max_relative_difference(a: dict[str, Any], b: dict[str, Any]) -> float:
                 return float("inf")
             continue
         if x != y:
-            worst = max(worst, abs(x - y) / max(abs(y), 1e-9))
+            worst = max(worst, abs(x - y) / max(abs(y), 1e-6))
     return worst
 
 

@@ -137,9 +137,11 @@ class ArmController:
         cable_kp: float | Array,
         roll_free: bool = False,
         gain: Array | None = None,
+        compiled: bool = True,
     ) -> None:
         """``gain``: the outer loop's (2n × 2n) integral gain matrix (1/s, ``gains.plant_gain``);
-        None integrates with the scalar ``config.outer_gain``."""
+        None integrates with the scalar ``config.outer_gain``. ``compiled`` False: the Python
+        tick (same numbers), for a controller used once (loading the kernels costs more)."""
         self.geometry = geometry
         self.roll_free = bool(roll_free)
         self.config = config
@@ -167,9 +169,11 @@ class ArmController:
         self.last_command: list[float] = []  # bending coordinates of the last set-points (for recording)
         # The tick runs through the numba kernels (``control_kernels``, bit-identical to the
         # Python methods below, which stay as the reference and the fallback); False: Python.
+        self.compiled = bool(compiled)
+        if not self.compiled:
+            return
         from .control_kernels import dposv_address, kernels  # numba: imported when a controller is built, not with the config
 
-        self.compiled = True
         self._kernels = kernels()
         self._dposv = dposv_address()
         self._uplo, self._lapack_ints = np.array([ord("U")], dtype=np.uint8), np.zeros(5, dtype=np.int32)
