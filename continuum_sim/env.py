@@ -135,6 +135,7 @@ class SampleRemovalEnv(gym.Env[dict[str, Any], NDArray[np.float32]]):
             release_data(self.sim.data)
         self.controller = CorrectedController(self.base_controller)
         self.sim = make_simulation(cfg, self.plan, self.model, self.controller)
+        self.sim.render_model = self.render_model
         self.cutter = CutterObserver(self.sim)
         friction = CableFrictionObserver(cfg.model.cable_friction, 1)  # the same physics hooks as run_scenario
         self.loop = TickLoop(self.sim, [self.cutter, friction, HealthCheck()])  # run's tick loop, one tick at a time

@@ -33,10 +33,15 @@ class FrameGrab(Observer):
         import imageio.v2 as imageio
         import mujoco
 
-        sim.model.vis.global_.offwidth = max(sim.model.vis.global_.offwidth, self.size[1])
-        sim.model.vis.global_.offheight = max(sim.model.vis.global_.offheight, self.size[0])
-        with mujoco.Renderer(sim.model, *self.size) as renderer:
-            renderer.update_scene(sim.data, camera=self.camera)
+        model = sim.drawable_model  # draws the cables (a native-cable run simulates fixed tendons)
+        data = mujoco.MjData(model)
+        data.qpos[:], data.mocap_pos[:], data.mocap_quat[:] = sim.data.qpos, sim.data.mocap_pos, sim.data.mocap_quat
+        model.geom_rgba[:] = sim.model.geom_rgba  # the cut material, as the run coloured it
+        mujoco.mj_forward(model, data)
+        model.vis.global_.offwidth = max(model.vis.global_.offwidth, self.size[1])
+        model.vis.global_.offheight = max(model.vis.global_.offheight, self.size[0])
+        with mujoco.Renderer(model, *self.size) as renderer:
+            renderer.update_scene(data, camera=self.camera)
             imageio.imwrite(self.path, renderer.render())
         self.done = True
         return None

@@ -81,13 +81,14 @@ def run_scenario(
     if out is not None:
         start_run_dir(out, config, root)
     sim = make_simulation(config, plan, model, controller or load_controller(controller_spec(config)))
+    sim.render_model = render_model
     every = round(1.0 / (config.simulation.record_hz * sim.control_period))
     cutter = CutterObserver(sim, every)
     recorder = Recorder(every, cutter)
     friction = CableFrictionObserver(config.model.cable_friction, recorder.every)  # acts inside mj_step
     hooks: list[Observer] = [cutter, recorder, friction, *observers, HealthCheck()]
     if video and out is not None:
-        hooks.append(VideoObserver(sim, out / "video.mp4", config.simulation, model=render_model))
+        hooks.append(VideoObserver(sim, out / "video.mp4", config.simulation))
     if progress:
         hooks.append(ProgressObserver(end_time))
     clock.lap("model_build_and_setup")

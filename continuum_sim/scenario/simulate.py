@@ -54,6 +54,13 @@ class Simulation:
     commands: MotorCommands | None = None  # last commands (what a motor model would track)
     measure: Callable[[Simulation], MeasuredState] = field(default=lambda sim: measure_state(sim))
     actuate: Callable[[Simulation, MotorCommands], None] = field(default=lambda sim, c: apply_commands(sim, c))
+    # The model to draw (same state layout as ``model``): the spatial twin of a native-cable
+    # model, whose fixed-tendon cables MuJoCo does not draw (model.cable_path); None: ``model``.
+    render_model: mujoco.MjModel | None = None
+
+    @property
+    def drawable_model(self) -> mujoco.MjModel:
+        return self.model if self.render_model is None else self.render_model
 
     @property
     def timestep(self) -> float:
@@ -385,7 +392,7 @@ class VideoObserver(Observer):
         from ..video import VideoRecorder
 
         c = simulation_config
-        self.render_model = sim.model if model is None else model
+        self.render_model = sim.drawable_model if model is None else model
         self.video = VideoRecorder(self.render_model, path, c.cameras, c.video_width, c.video_height, c.video_fps,
                                    shadows=c.video_shadows)
 
