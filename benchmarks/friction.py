@@ -35,10 +35,8 @@ import mujoco
 import numpy as np
 
 from continuum_sim import cable_lengths
-from continuum_sim.geometry import ArmGeometry
 from continuum_sim.model import friction as fr
-from continuum_sim.model.arm import build_single_arm_model
-from continuum_sim.model.options import ModelOptions, model_geometry
+from continuum_sim.model.options import model_geometry
 from continuum_sim.model.state import set_arm_configuration
 from continuum_sim.scenario.config import ScenarioConfig
 from continuum_sim.validation.capstan import anchor_tension as _anchor_tension

@@ -21,6 +21,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 from continuum_sim import ArmGeometry, cable_lengths  # noqa: E402
@@ -29,8 +30,6 @@ from continuum_sim.model.options import ModelOptions, model_geometry  # noqa: E4
 from continuum_sim.model.scene import build_scene  # noqa: E402
 from continuum_sim.model.state import set_arm_configuration  # noqa: E402
 from continuum_sim.model.tools import ToolOptions  # noqa: E402
-
-import mujoco  # noqa: E402
 
 # Both arms bent outward, away from each other and the plate, so no variant collides.
 POSES = {"left": np.radians([30, 180, 25, 150, 20, 210]), "right": np.radians([30, 0, 25, 30, 20, 330])}
