@@ -42,8 +42,9 @@ from continuum_sim.scenario.runner import build_scene_model  # noqa: E402
 def gpu_available() -> str | None:
     """None when MuJoCo Warp can run here, else why not (one line)."""
     try:
-        import mujoco_warp  # noqa: F401
         import warp as wp
+
+        import mujoco_warp  # noqa: F401
     except ImportError as exc:
         return f"mujoco-warp is not installed ({exc.name}); install the optional extra: pip install -e .[warp]"
     try:
@@ -88,8 +89,9 @@ def cpu_rollout(models: list[mujoco.MjModel], worlds: int, nstep: int) -> dict[s
 
 
 def gpu_batch(models: list[mujoco.MjModel], worlds: int, nstep: int) -> dict[str, Any]:
-    import mujoco_warp as mjw
     import warp as wp
+
+    import mujoco_warp as mjw
 
     base = models[0]
     state0, ctrl0 = initial_state(base)
