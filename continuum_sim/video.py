@@ -102,9 +102,13 @@ class _FrameRenderer:
 def _open_writer(path: Path, fps: float) -> Any:
     import imageio.v2 as imageio
 
+    # "quiet": a render worker stopped by Ctrl-C (close() kills it) cuts its ffmpeg's input mid-frame,
+    # and ffmpeg's complaints about the short packet (error level, and fatal when it was the
+    # segment's only frame) would reach the terminal under the run's one-line message; a real
+    # encoding failure still raises in the worker (imageio checks ffmpeg's exit) and reaches close().
     return imageio.get_writer(
         path, format="FFMPEG", mode="I", fps=fps, codec="libx264", quality=7, macro_block_size=8,
-        ffmpeg_log_level="error",
+        ffmpeg_log_level="quiet",
     )
 
 
