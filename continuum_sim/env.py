@@ -190,14 +190,14 @@ class SampleRemovalEnv(gym.Env[dict[str, Any], NDArray[np.float32]]):
             return None
         import mujoco
 
+        from .video import pose_for_drawing
+
         if self._renderer is None:
             self._renderer = mujoco.Renderer(self.render_model, 240, 320)
             self._render_data = mujoco.MjData(self.render_model)
-        data = self._render_data
-        data.qpos[:], data.mocap_pos[:], data.mocap_quat[:] = self.sim.data.qpos, self.sim.data.mocap_pos, self.sim.data.mocap_quat
-        self.render_model.geom_rgba[:] = self.model.geom_rgba  # colours the run changed (cut material)
-        mujoco.mj_forward(self.render_model, data)
-        self._renderer.update_scene(data, camera=self.config.simulation.cameras[0])
+        d = self.sim.data
+        pose_for_drawing(self.render_model, self._render_data, d.time, d.qpos, d.mocap_pos, d.mocap_quat, self.model.geom_rgba)
+        self._renderer.update_scene(self._render_data, camera=self.config.simulation.cameras[0])
         return self._renderer.render()
 
     def close(self) -> None:

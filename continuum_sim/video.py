@@ -62,6 +62,28 @@ def _prepare_model(model: Any, width: int, height: int, shadows: bool, quality: 
     model.vis.quality.numstacks = stacks
 
 
+def pose_for_drawing(model: Any, data: Any, time: float, qpos: np.ndarray, mocap_pos: np.ndarray,
+                     mocap_quat: np.ndarray, geom_rgba: np.ndarray | None = None) -> None:
+    """Put a state into ``data`` of the model that draws it and compute what drawing needs.
+
+    ``model`` may be another model of the same state layout than the one simulated (the
+    spatial twin of a native-cable run, whose cables MuJoCo draws); ``geom_rgba`` carries the
+    colours the run changed (cut material). Kinematics, cameras and tendon paths only.
+    """
+    import mujoco
+
+    data.time = time
+    data.qpos[:] = qpos
+    data.mocap_pos[:] = mocap_pos
+    data.mocap_quat[:] = mocap_quat
+    if geom_rgba is not None:
+        model.geom_rgba[:] = geom_rgba
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+    mujoco.mj_camlight(model, data)  # cameras and lights follow their bodies
+    mujoco.mj_tendon(model, data)
+
+
 class _FrameRenderer:
     """One renderer that draws every camera of a frame side by side."""
 
@@ -75,18 +97,9 @@ class _FrameRenderer:
         self.renderer = mujoco.Renderer(model, height, width)
 
     def render_state(self, state: FrameState) -> np.ndarray:
-        data = self.data
-        data.time = state.time
-        data.qpos[:] = state.qpos
-        data.mocap_pos[:] = state.mocap_pos
-        data.mocap_quat[:] = state.mocap_quat
-        if state.geom_rgba is not None:
-            self.model.geom_rgba[:] = state.geom_rgba
-        self._mujoco.mj_kinematics(self.model, data)
-        self._mujoco.mj_comPos(self.model, data)
-        self._mujoco.mj_camlight(self.model, data)  # cameras and lights follow their bodies
-        self._mujoco.mj_tendon(self.model, data)
-        return self.render_data(data)
+        pose_for_drawing(self.model, self.data, state.time, state.qpos, state.mocap_pos, state.mocap_quat,
+                         state.geom_rgba)
+        return self.render_data(self.data)
 
     def render_data(self, data: Any) -> np.ndarray:
         tiles = []

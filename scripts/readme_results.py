@@ -33,11 +33,11 @@ class FrameGrab(Observer):
         import imageio.v2 as imageio
         import mujoco
 
+        from continuum_sim.video import pose_for_drawing
+
         model = sim.drawable_model  # draws the cables (a native-cable run simulates fixed tendons)
-        data = mujoco.MjData(model)
-        data.qpos[:], data.mocap_pos[:], data.mocap_quat[:] = sim.data.qpos, sim.data.mocap_pos, sim.data.mocap_quat
-        model.geom_rgba[:] = sim.model.geom_rgba  # the cut material, as the run coloured it
-        mujoco.mj_forward(model, data)
+        data, d = mujoco.MjData(model), sim.data
+        pose_for_drawing(model, data, d.time, d.qpos, d.mocap_pos, d.mocap_quat, sim.model.geom_rgba)
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, self.size[1])
         model.vis.global_.offheight = max(model.vis.global_.offheight, self.size[0])
         with mujoco.Renderer(model, *self.size) as renderer:

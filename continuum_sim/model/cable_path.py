@@ -47,7 +47,6 @@ import numpy as np
 from . import friction as fr
 from .jit import jit_in_place, sigint_deferred
 
-CABLE_PATHS = ("native", "spatial")
 # <fixed> accepts these of a <spatial> tendon's attributes; the visual ones (width, rgba,
 # material) and wrapping have no meaning for a fixed tendon.
 _FIXED_ATTRIBUTES = frozenset({
@@ -271,10 +270,6 @@ class NativeCables:
             handle.apply(self.model, data)
         fr.register_passive(data, handle, first=True)
         return data
-
-    def apply(self, model: Any, data: Any) -> None:  # noqa: ARG002 - the passive hook's signature
-        """Evaluate the cables of ``data`` (an MjData of ``model``): what the callback does."""
-        _NativeData(self, data).apply(model, data)
 
 
 class _NativeData:
