@@ -44,3 +44,13 @@ def carry_with_mocap(root: mjcf.RootElement, arm: str, anchor_height: float) -> 
         "weld", body1=target, body2=root.find("body", f"{arm}/base"), anchor=(0, 0, anchor_height), solref=(0.004, 1.0)
     )
     return target
+
+
+def contacts_on_a_plane(cone: str) -> mujoco.MjModel:
+    """Three free bodies (condim 3, 1, 6) resting on a plane: contacts of every kind, for the contact-force tests."""
+    return mujoco.MjModel.from_xml_string(f"""<mujoco><option cone="{cone}" timestep="0.002"/><worldbody>
+      <geom type="plane" size="1 1 0.1"/>
+      <body pos="0 0 0.05"><freejoint/><geom type="box" size="0.05 0.04 0.03" condim="3"/></body>
+      <body pos="0.3 0 0.05"><freejoint/><geom type="sphere" size="0.04" condim="1"/></body>
+      <body pos="-0.3 0 0.05" euler="0 20 10"><freejoint/><geom type="box" size="0.03 0.03 0.03" condim="6"/></body>
+    </worldbody></mujoco>""")

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from model_helpers import contacts_on_a_plane
 
 from continuum_sim.scenario.config import ScenarioConfig, merged
 from continuum_sim.scenario.metrics import WALL_CLOCK_METRICS
@@ -164,13 +165,7 @@ def test_recorded_normal_forces_equal_mujocos_contact_force(cone):
 
     from continuum_sim.scenario.simulate import normal_forces
 
-    xml = f"""<mujoco><option cone="{cone}" timestep="0.002"/><worldbody>
-      <geom type="plane" size="1 1 0.1"/>
-      <body pos="0 0 0.05"><freejoint/><geom type="box" size="0.05 0.04 0.03" condim="3"/></body>
-      <body pos="0.3 0 0.05"><freejoint/><geom type="sphere" size="0.04" condim="1"/></body>
-      <body pos="-0.3 0 0.05" euler="0 20 10"><freejoint/><geom type="box" size="0.03 0.03 0.03" condim="6"/></body>
-    </worldbody></mujoco>"""
-    model = mujoco.MjModel.from_xml_string(xml)
+    model = contacts_on_a_plane(cone)
     data = mujoco.MjData(model)
     for _ in range(100):
         mujoco.mj_step(model, data)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
+from model_helpers import contacts_on_a_plane
 
 from continuum_sim.model.handles import GeomKind
 from continuum_sim.scenario.trajectory import CONTACT_KINDS
@@ -58,13 +59,7 @@ def test_contact_sums_equal_the_numpy_masks_bit_for_bit(n):
 def test_contact_forces_of_a_stepped_scene(cone):
     from continuum_sim.scenario.simulate import contact_forces, normal_forces
 
-    xml = f"""<mujoco><option cone="{cone}" timestep="0.002"/><worldbody>
-      <geom type="plane" size="1 1 0.1"/>
-      <body pos="0 0 0.05"><freejoint/><geom type="box" size="0.05 0.04 0.03" condim="3"/></body>
-      <body pos="0.3 0 0.05"><freejoint/><geom type="sphere" size="0.04" condim="1"/></body>
-      <body pos="-0.3 0 0.05" euler="0 20 10"><freejoint/><geom type="box" size="0.03 0.03 0.03" condim="6"/></body>
-    </worldbody></mujoco>"""
-    model = mujoco.MjModel.from_xml_string(xml)
+    model = contacts_on_a_plane(cone)
     data = mujoco.MjData(model)
     kind = np.array([GeomKind.OTHER, GeomKind.CUTTER, GeomKind.FIRST_ARM, GeomKind.GRIPPER], dtype=np.int64)
     assert contact_forces(model, data, kind).tobytes() == np.zeros(4).tobytes()  # no contacts yet
