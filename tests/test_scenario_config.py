@@ -28,6 +28,7 @@ def test_user_file_overrides_a_subset(tmp_path):
         ({"model": {"timestep": -1.0}}, "model.timestep"),
         ({"simulation": {"video_width": 3}}, "simulation.video_width"),
         ({"model": {"jacobian": "diagonal"}}, "model.jacobian"),
+        ({"model": {"cable_path": "wireless"}}, "model.cable_path"),
         ({"model": {"impratio": 0.5}}, "model.impratio"),
         ({"plan": {"return_offset": -0.001}}, "plan.return_offset"),
         ({"control": {"max_extra_tension": -1.0}}, "control.max_extra_tension"),
