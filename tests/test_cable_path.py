@@ -87,6 +87,35 @@ def test_native_cables_equal_the_spatial_tendons(joint: str) -> None:
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
 
 
+def test_shortened_tendons_give_mujoco_the_same_exact_zeros() -> None:
+    """``shorten_zero_tendons`` (MuJoCo visits one joint of each cable's fixed tendon, not all):
+    MuJoCo's own tendon outputs are the full tendon's bit for bit (zeros), the sparsity is kept."""
+    root = _arm_root("hinge_pair")
+    xml, assets = root.to_xml_string(), root.get_assets()
+    spatial = mujoco.MjModel.from_xml_string(xml, assets)
+    ids = fr.cable_tendons(spatial)
+    full = mujoco.MjModel.from_xml_string(cp.native_cable_xml(xml, spatial, ids), assets)
+    short = mujoco.MjModel.from_xml_string(cp.native_cable_xml(xml, spatial, ids), assets)
+    cp.shorten_zero_tendons(short, ids)
+    assert np.all(short.tendon_num[ids] == 1) and np.all(full.tendon_num[ids] > 10)
+    np.testing.assert_array_equal(short.ten_J_rownnz, full.ten_J_rownnz)
+    np.testing.assert_array_equal(short.ten_J_colind, full.ten_J_colind)
+    d_full, d_short = mujoco.MjData(full), mujoco.MjData(short)
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        _random_state(full, d_full, rng)
+        d_short.qpos[:], d_short.qvel[:] = d_full.qpos, d_full.qvel
+        for m, d in ((full, d_full), (short, d_short)):
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            mujoco.mj_tendon(m, d)
+        for name in ("ten_length", "ten_J"):
+            np.testing.assert_array_equal(getattr(d_short, name), getattr(d_full, name), err_msg=name)
+        assert not np.any(d_full.ten_J) and not np.any(d_full.ten_length[ids])
+    with pytest.raises(ValueError, match="zero-coefficient fixed tendon"):
+        cp.shorten_zero_tendons(spatial, ids)  # spatial tendons: refused
+
+
 def _drive(model: mujoco.MjModel, data: mujoco.MjData, steps: int, seed: int = 0) -> np.ndarray:
     rng = np.random.default_rng(seed)
     lo, hi = model.actuator_ctrlrange.T
