@@ -34,10 +34,11 @@ cutter can reach (the whole plate outside the clamped strip, sample included) at
   no longer connected to the clamped edge. Then the weld ``sample_weld`` is released and
   every voxel that lost its connection leaves the grid (it went with the sample).
 
-The voxel work of each step (engagement, depth sampling, removal) and the connectivity
-check run in numba kernels
-(``cutting_kernels``) unless ``FoamOptions.native`` is false; both paths give bit-identical
-results.
+Each step after the spindle's set-point (near test, engagement, force with the implicit
+feed, removal, wrench) runs as one numba kernel, and the connectivity check as another
+(``cutting_kernels``), unless ``FoamOptions.native`` is false; both paths give bit-identical
+results. (A cutter pressed into material while not cutting, the block spring, takes the
+Python path in either case.)
 
 The forces are added to ``xfrc_applied``/``qfrc_applied`` (what was added the step before
 is taken back first), so other per-step models may add theirs.
@@ -55,6 +56,7 @@ import mujoco
 import numpy as np
 from scipy import ndimage
 
+from . import cutting_kernels as ck
 from .scene_options import FoamOptions
 from .tools import CUTTER_GEOM, GRINDER, SPINDLE_JOINT, SpindleLoop, ToolOptions
 
@@ -218,6 +220,11 @@ class FoamCutter:
         self._jxy = self._jac[:2]
         self._e, self._g = np.zeros(2), np.zeros(2)
         self._wrench, self._delta = np.zeros(6), np.zeros(6)
+        self._applied_force = np.zeros(6)
+        self._fv: np.ndarray | None = None
+        self._native_step: Any = None
+        if self._native is not None:
+            self._fuse(data, self._native["step"])
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -231,12 +238,15 @@ class FoamCutter:
         self.detach_time: float | None = None
         self.removed_volume = 0.0
         self.freed_volume = 0.0  # material that left with the sample
-        self._applied_force = np.zeros(6)
+        self._applied_force[:] = 0.0
         self._applied_torque = 0.0
         self._dirty = False
         self._last_check = -math.inf
         self._recent[:] = np.inf
         self._recent_i = 0
+        if self._fv is not None:
+            self._fv[ck.F_TORQUE_APPLIED] = 0.0
+            self._iv[ck.I_RI] = 0
         self._block: tuple[float, float, float, float, float] | None = None
         self.checks = 0
 
@@ -275,13 +285,51 @@ class FoamCutter:
     def step(self, spindle_reference: float) -> CutState:
         """Before one ``mj_step``: spindle set-point, cutting force and torque, removal.
 
-        Written in scalar floats where it can: it runs every physics step.
+        It runs every physics step: natively one kernel call (``cutting_kernels._step``) and
+        the ``CutState``; else ``_step``, written in scalar floats where it can.
         """
-        data, grid, foam = self.data, self.grid, self.foam
+        data = self.data
         dt = float(self._opt.timestep)
         omega = self._qvel.item(self.spindle_dof)
-        self._ctrl[self.spindle_actuator] = self.spindle.control(spindle_reference, omega, float(data.time), dt)
+        time = float(data.time)
+        self._ctrl[self.spindle_actuator] = self.spindle.control(spindle_reference, omega, time, dt)
+        fv = self._fv
+        if fv is None:
+            return self._step(omega, dt)
+        fv[ck.F_DT] = dt
+        fv[ck.F_OMEGA] = omega
+        fv[ck.F_TIME] = time
+        fv[ck.F_STALLED] = 1.0 if self.spindle.stalled else 0.0
+        grid = self.grid
+        outcome, n_inside = self._native_step(grid.material, grid.cut, grid.removed_at, self._recent, fv, self._iv)
+        if outcome == ck.STEP_PYTHON:
+            # Near the material, not cutting: the Python path (with the fused step's state).
+            self._recent_i, self._applied_torque = int(self._iv[ck.I_RI]), float(fv[ck.F_TORQUE_APPLIED])
+            state = self._step(omega, dt)
+            self._iv[ck.I_RI], fv[ck.F_TORQUE_APPLIED] = self._recent_i, self._applied_torque
+            return state
+        self._block = None
+        if n_inside:
+            self.removed_volume += n_inside * grid.voxel_volume
+            self._dirty = True
+        kind = fv[ck.F_KIND]
+        if kind == 0.0:
+            state = _IDLE
+        elif kind == 1.0:
+            fx, fy, feed_force, normal_force, torque, mrr, power, depth, chip, speed, cutting = fv[ck.F_OUT:ck.F_KIND].tolist()
+            state = CutState(force=np.array([fx, fy, 0.0]), feed_force=feed_force, normal_force=normal_force,
+                             torque=torque, mrr=mrr, power=power, depth=depth, chip=chip, feed_speed=speed,
+                             cutting=cutting != 0.0)
+        else:
+            state = CutState()
+            state.cutting = True
+        self.state = state
+        return state
 
+    def _step(self, omega: float, dt: float) -> CutState:
+        """``step`` after the spindle's set-point, in Python (``native`` false, and the native
+        path's non-cutting contact)."""
+        data, grid, foam = self.data, self.grid, self.foam
         state = _IDLE
         px_, py_, pz_ = self._xpos_row.tolist()
         mat = self._xmat_row.tolist()
@@ -399,6 +447,31 @@ class FoamCutter:
         self.state = state
         return state
 
+    def _fuse(self, data: mujoco.MjData, step: Any) -> None:
+        """Set up the fused step (``cutting_kernels._step``): its constants and state in one
+        float and one int array, the buffers it reads and writes by address (MuJoCo's live as
+        long as ``data``; the others are this cutter's and are kept)."""
+        model, grid, foam = self.model, self.grid, self.foam
+        fv = np.zeros(ck.N_F)
+        fv[ck.F_ZMID], fv[ck.F_HALF], fv[ck.F_R], fv[ck.F_PROBE] = self._z_mid, self.half_length, self.radius, self._probe
+        fv[ck.F_PROBE2], fv[ck.F_MIN_SPEED], fv[ck.F_U] = self._probe2, foam.min_cutting_speed, self.u
+        fv[ck.F_RADIAL], fv[ck.F_INERTIA] = foam.radial_ratio, self.spindle_inertia
+        fv[ck.F_BOX:ck.F_BOX + 6] = self._box
+        self._applied_force = fv[ck.F_APPLIED:ck.F_APPLIED + 6]  # (a view: _apply and the kernel share it)
+        self._consts = [np.ascontiguousarray(a, dtype=float) for a in (
+            *grid.centres, self._edges, grid.lo, grid.h, self._cos_t, self._sin_t, self._i_cc, self._i_cs, self._i_c)]
+        iv = np.zeros(ck.N_I, np.int64)
+        jac, solve = ck.mujoco_functions()
+        iv[ck.I_BODY], iv[ck.I_NV], iv[ck.I_M], iv[ck.I_D] = self.body, model.nv, model._address, data._address
+        iv[ck.I_JAC], iv[ck.I_SOLVE], iv[ck.I_NPROBE], iv[ck.I_TWO] = jac, solve, len(self._theta), 2
+        views = (self._xpos_row, self._xmat_row, self._cvel_row, self._com_row, self._xipos_row, self._xfrc_row,
+                 self._qfrc[self.spindle_dof:], self._qacc, self._jac, self._minv_jt, self._point, *self._consts)
+        for slot, view in enumerate(views, start=ck.I_XPOS):
+            assert view.dtype == np.float64 and view.flags.c_contiguous, slot
+            iv[slot] = view.ctypes.data
+        self._fv, self._iv = fv, iv
+        self._native_step = step
+
     def _overlap(self, cx: float, cy: float, z0: float, z1: float) -> tuple[Any, ...]:
         """numpy path: (layer weights, i0, i1, j0, j1, k0, k1, dx, dy, inside) with ``inside`` the
         material voxels of ``material[i0:i1, j0:j1, k0:k1]`` whose centres lie in the cutter."""
@@ -448,7 +521,7 @@ class FoamCutter:
         wrench[:] = (fx, fy, 0.0, -rz * fy, rz * fx, rx * fy - ry * fx)  # force; r × F
         np.subtract(wrench, self._applied_force, out=self._delta)
         self._xfrc_row += self._delta
-        self._wrench, self._applied_force = self._applied_force, wrench
+        self._applied_force[:] = wrench
         # The load resists the spin but cannot reverse it within one step.
         load = -math.copysign(min(torque, self.spindle_inertia * abs(omega) / dt), omega) if torque > 0 else 0.0
         self._qfrc[self.spindle_dof] += load - self._applied_torque
@@ -526,6 +599,12 @@ def _compiled_kernels() -> dict[str, Any]:
         k["held_anchored"](material, np.array([1], np.int64))
         k["free_loose"](material)
         k["columns_with_material"](material, np.array([1], np.int64))
+        # The fused step, far from any material (an empty box): it only writes the scratch buffers.
+        fv, iv = np.zeros(ck.N_F), np.zeros(ck.N_I, np.int64)
+        fv[ck.F_BOX:ck.F_BOX + 3], fv[ck.F_DT] = 1.0, 1.0
+        scratch = np.zeros(32)
+        iv[ck.I_XPOS:ck.I_IC + 1] = scratch.ctypes.data
+        k["step"](material, np.zeros_like(material), np.full((2, 2), np.nan, np.float32), recent, fv, iv)
     return k
 
 
