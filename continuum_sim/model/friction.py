@@ -861,6 +861,8 @@ def sync_native_models() -> None:
     nc.TABLE[nc.H_NMODELS] = 0
     nc.TABLE[nc.H_MODELS:nc.H_MODELS + len(addresses)] = addresses
     nc.TABLE[nc.H_NMODELS] = len(addresses)
+    if _REGISTRY and _COMPILED and len(_native_models()) > nc.MAX_MODELS:
+        _ensure_callback()  # too many to list: the Python callback reports them
 
 
 def _wanted_callback() -> Any:
