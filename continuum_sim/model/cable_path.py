@@ -11,7 +11,8 @@ How: the compiled run model replaces every arm cable's ``<spatial>`` tendon by a
 ``<fixed>`` tendon over the joints the cable spans, all coefficients 0 (so MuJoCo's own
 tendon length, Jacobian and passive force are exactly 0 and the sparsity of ``ten_J`` and
 of the actuator moments is the spatial one). MuJoCo's passive-force callback (shared with
-cable friction, ``friction._passive_callback``) then writes, before the actuation stage,
+cable friction: the numba cfunc of ``native_callback``, or ``friction._passive_callback``
+with CONTINUUM_SIM_PY_CALLBACK=1) then writes, before the actuation stage,
 from MuJoCo's own kinematics of the step (the hole sites' positions, each hinge's axis and
 anchor: no trigonometry), piece by piece (length |x_c − x_p| in MuJoCo's arithmetic for a
 site-to-site segment, so the lengths are the spatial tendon's bit for bit; gradient
