@@ -11,7 +11,8 @@ How: the compiled run model replaces every arm cable's ``<spatial>`` tendon by a
 ``<fixed>`` tendon over the joints the cable spans, all coefficients 0 (so MuJoCo's own
 tendon length, Jacobian and passive force are exactly 0 and the sparsity of ``ten_J`` and
 of the actuator moments is the spatial one). MuJoCo's passive-force callback (shared with
-cable friction, ``friction._passive_callback``) then writes, before the actuation stage,
+cable friction: the numba cfunc of ``native_callback``, or ``friction._passive_callback``
+with CONTINUUM_SIM_PY_CALLBACK=1) then writes, before the actuation stage,
 from MuJoCo's own kinematics of the step (the hole sites' positions, each hinge's axis and
 anchor: no trigonometry), piece by piece (length |x_c − x_p| in MuJoCo's arithmetic for a
 site-to-site segment, so the lengths are the spatial tendon's bit for bit; gradient
@@ -249,7 +250,8 @@ class NativeCables:
         self.ten_colind = np.array(model.ten_J_colind, dtype=np.int64)
         self._fn = kernels()["native_cables"]
         _NATIVE_MODELS[model._address] = self
-        weakref.finalize(model, _NATIVE_MODELS.pop, model._address, None)
+        weakref.finalize(model, _drop_model, model._address)
+        fr.sync_native_models()
 
     @property
     def model(self) -> Any:
@@ -279,10 +281,45 @@ class _NativeData:
         self.cables = cables
         self._model_ref = cables._model_ref
         self._data_ref = weakref.ref(data)
-        self.error: BaseException | None = None
+        self._key = data._address
+        self._error: BaseException | None = None
         self._views = (data.qvel, data.site_xpos, data.xaxis, data.xanchor, data.xmat, data.ten_length, data.ten_J,
                        data.ten_velocity, data.actuator_length, data.actuator_velocity, data.actuator_moment,
                        data.moment_rowadr, data.qfrc_spring, data.qfrc_damper, data.qfrc_passive)
+
+    table_kind = "native"
+
+    @property
+    def error(self) -> BaseException | None:
+        """The first error the passive callback met in this hook (None: none)."""
+        if self._error is None and fr._SLOTS:
+            fr._table_error(self)
+        return self._error
+
+    @error.setter
+    def error(self, value: BaseException | None) -> None:
+        self._error = value
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        object.__setattr__(self, name, value)
+        if name == "apply":  # a replaced apply (tests) only runs through the Python callback
+            fr._resync(self)
+
+    def table_arrays(self) -> tuple[Any, ...]:
+        """The kernel's array arguments, in order (``native_callback.NATIVE_ARRAYS``)."""
+        n, k = self.cables, self.cables.kernel
+        r = k.routing
+        (qvel, site_xpos, xaxis, xanchor, xmat, ten_length, ten_J, ten_velocity, actuator_length, actuator_velocity,
+         actuator_moment, moment_rowadr, qfrc_spring, qfrc_damper, qfrc_passive) = self._views
+        return (
+            qvel, site_xpos, xaxis, xanchor, xmat, n.piece_psite, n.piece_csite, n.seg_jnt, r.seg_njnt, r.seg_ball,
+            n.piece_base, r.piece_seg, r.cable_start, r.cable_end, r.tendon_ids, n.piece_jadr,
+            n.ten_rowadr, n.ten_rownnz, n.ten_colind, n.ten_stiffness, n.ten_damping, n.ten_spring,
+            n.act_ids, n.act_owner, n.act_gear, moment_rowadr,
+            k.length, k.direction, k.grad,
+            ten_length, ten_J, ten_velocity, actuator_length, actuator_velocity, actuator_moment,
+            qfrc_spring, qfrc_damper, qfrc_passive,
+        )  # fmt: skip
 
     def apply(self, model: Any, data: Any) -> None:  # noqa: ARG002 - the passive hook's signature
         n, k = self.cables, self.cables.kernel
@@ -303,6 +340,11 @@ class _NativeData:
 # Models with native cables (address -> NativeCables, dropped when the model is freed): the
 # passive callback reports a data of one of these that was not made by make_data.
 _NATIVE_MODELS: dict[int, NativeCables] = {}
+
+
+def _drop_model(address: int) -> None:
+    _NATIVE_MODELS.pop(address, None)
+    fr.sync_native_models()
 
 
 def native_cables(model: Any) -> NativeCables | None:

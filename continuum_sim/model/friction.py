@@ -34,6 +34,7 @@ a compiled model through MuJoCo's passive-force callback, without touching the m
 from __future__ import annotations
 
 import itertools
+import os
 import re
 import sys
 import weakref
@@ -569,7 +570,38 @@ class CableFriction:
         self._views = (data.qpos, data.actuator_force, data.ten_length, data.ten_velocity, data.qfrc_passive)
         self._model_ref = weakref.ref(model)
         self._data_ref = weakref.ref(data)
-        self.error: BaseException | None = None
+        self._key = data._address
+        self._error: BaseException | None = None
+
+    table_kind = "friction"
+
+    @property
+    def error(self) -> BaseException | None:
+        """The first error the passive callback met in this hook (None: none)."""
+        if self._error is None and _SLOTS:
+            _table_error(self)
+        return self._error
+
+    @error.setter
+    def error(self, value: BaseException | None) -> None:
+        self._error = value
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        object.__setattr__(self, name, value)
+        if name == "apply":  # a replaced apply (tests) only runs through the Python callback
+            _resync(self)
+
+    def table_arrays(self) -> tuple[Any, ...]:
+        """The kernel's array arguments, in order (``native_callback.FRICTION_ARRAYS``)."""
+        r, k = self.kernel.routing, self.kernel
+        qpos, actuator_force, ten_length, ten_velocity, qfrc_passive = self._views
+        return (
+            qpos, r.seg_ball, r.seg_njnt, r.seg_qadr, r.seg_qref, r.seg_axes, r.seg_bpos, r.seg_bmat, r.seg_jpos,
+            r.seg_dofadr, r.piece_seg, r.piece_parent, r.piece_child, r.cable_start, r.cable_end, r.tendon_ids,
+            self._act_ids, self._act_owner, actuator_force, self._ten_k, self._ten_b, self._ten_spring,
+            ten_length, ten_velocity, self.z, self.s_prev, self.initialised,
+            self.tension, k.seg_R, k.seg_w, k.length, k.direction, k.grad, self.piece_tension, self.wrap, qfrc_passive,
+        )  # fmt: skip
 
     # -------------------------------------------------------------- tensions and forces
     def apply(self, model, data) -> None:
@@ -654,21 +686,27 @@ def _unraisable_hook(unraisable: Any) -> None:
     _PREVIOUS_UNRAISABLE[0](unraisable)
 
 
+_UNREGISTERED_NATIVE = ("a model with native cables was stepped with an MjData not made by NativeCables.make_data"
+                        " (its cables would have zero length)")
+
+
 def raise_pending() -> None:
     """Re-raise an exception (e.g. a signal handler's) that interrupted the passive callback."""
     if _PENDING:
         exc = _PENDING[0]
         _PENDING.clear()
         raise exc
+    nc = sys.modules.get(__package__ + ".native_callback")
+    if nc is not None and nc.TABLE[nc.H_PENDING]:  # flagged by the compiled callback
+        nc.TABLE[nc.H_PENDING] = 0
+        raise RuntimeError(_UNREGISTERED_NATIVE)
 
 
 def _passive_callback(model_ptr: int | None, data_ptr: int | None) -> None:
     hooks = _REGISTRY.get(data_ptr or 0)
     if hooks is None:
         if model_ptr in _native_models() and not _PENDING:
-            _PENDING.append(RuntimeError(
-                "a model with native cables was stepped with an MjData not made by NativeCables.make_data"
-                " (its cables would have zero length)"))
+            _PENDING.append(RuntimeError(_UNREGISTERED_NATIVE))
         return
     for handle in hooks:
         model, data = handle._model_ref(), handle._data_ref()
@@ -696,12 +734,154 @@ def register_passive(data: Any, handle: Any, first: bool = False) -> None:
     ``first``: before the hooks already registered (the native cable path must write the
     cables' geometry before friction reads it). Dropped when ``data`` is freed.
     """
-    _ensure_callback()
     key = data._address
     hooks = _REGISTRY.setdefault(key, [])
     if not hooks:
         weakref.finalize(data, _unregister, key, None)
     hooks.insert(0 if first else len(hooks), handle)
+    _sync(key)
+    _ensure_callback()
+
+
+# The compiled callback (``native_callback``, a numba cfunc: no Python per step) runs the same
+# kernels from a table of the registered datas' arrays; the Python callback above is the
+# fallback (CONTINUUM_SIM_PY_CALLBACK=1, or whenever a registration does not fit the table).
+COMPILED_CALLBACK = os.environ.get("CONTINUUM_SIM_PY_CALLBACK", "") in ("", "0")
+_SLOTS: dict[int, int] = {}  # data address -> table row
+_SLOT_HOOKS: dict[int, tuple[Any, Any]] = {}  # data address -> (native hook, friction hook) in that row
+_UNFIT: set[int] = set()  # data addresses whose hooks only the Python callback can run
+
+
+def _table() -> Any:
+    from . import native_callback
+
+    return native_callback
+
+
+def _row_for(key: int, hooks: list[Any]) -> tuple[Any, Any, np.ndarray] | None:
+    """(native hook, friction hook, table row) for the hooks of ``key``; None: they do not fit the table."""
+    nc = _table()
+    native = friction = None
+    for handle in hooks:
+        kind = getattr(handle, "table_kind", None)
+        if "apply" in vars(handle):  # replaced on the instance: only Python can call it
+            return None
+        if kind == "native" and native is None and friction is None:
+            native = handle
+        elif kind == "friction" and friction is None and handle.active:
+            friction = handle
+        else:
+            return None
+    models = {h._model_ref() for h in (native, friction) if h is not None}
+    if len(models) != 1 or None in models:
+        return None
+    model = models.pop()
+    row = np.zeros(nc.ROW, dtype=np.int64)
+    row[nc.C_DATA] = key
+    row[nc.C_MODEL] = model._address
+    if native is not None:
+        row[nc.C_NATIVE] = 1
+        if not nc.fill_arrays(row, nc.C_ARRAYS, nc.NATIVE_ARRAYS, native.table_arrays()):
+            return None
+    if friction is not None:
+        row[nc.C_FRICTION] = 1
+        row[nc.C_FWDACT] = int(friction._act_ids.size > 0)
+        row[nc.C_COMPUTE] = int(friction._compute_pieces)
+        row[nc.C_BASE_HOLE] = int(friction.config.base_hole)
+        floats = row.view(np.float64)
+        floats[nc.C_MU] = friction.config.mu
+        floats[nc.C_PRESLIDING] = friction.config.presliding
+        if not nc.fill_arrays(row, nc.C_FARRAYS, nc.FRICTION_ARRAYS, friction.table_arrays()):
+            return None
+    return native, friction, row
+
+
+def _harvest(key: int, slot: int) -> None:
+    """Move the error flags of ``key``'s table row into its hooks' ``error``."""
+    nc = _table()
+    base = nc.slot_base(slot)
+    for handle, column in zip(_SLOT_HOOKS.get(key, (None, None)), (nc.C_ERR_NATIVE, nc.C_ERR_FRICTION)):
+        if handle is not None and nc.TABLE[base + column] and handle._error is None:
+            handle._error = RuntimeError("the compiled passive callback: the kernel raised (run with "
+                                         "CONTINUUM_SIM_PY_CALLBACK=1 for the exception)")
+        nc.TABLE[base + column] = 0
+
+
+def _table_error(handle: Any) -> None:
+    key = handle._key
+    slot = _SLOTS.get(key)
+    if slot is not None and handle in _SLOT_HOOKS.get(key, ()):
+        _harvest(key, slot)
+
+
+def _sync(key: int) -> None:
+    """Rewrite the compiled callback's table row of the data at ``key`` from its registered hooks."""
+    _UNFIT.discard(key)
+    hooks = _REGISTRY.get(key)
+    if not COMPILED_CALLBACK or (not hooks and key not in _SLOTS):
+        return
+    nc = _table()
+    slot = _SLOTS.pop(key, None)
+    if slot is not None:
+        _harvest(key, slot)
+        base = nc.slot_base(slot)
+        nc.TABLE[base + nc.C_DATA] = 0  # first: the callback no longer matches this row
+        nc.TABLE[base:base + nc.ROW] = 0
+        _SLOT_HOOKS.pop(key, None)
+    if hooks:
+        fit = _row_for(key, hooks)
+        free = sorted(set(range(nc.MAX_SLOTS)) - set(_SLOTS.values()))
+        if fit is None or not free:
+            _UNFIT.add(key)
+        else:
+            native, friction, row = fit
+            slot = free[0]
+            base = nc.slot_base(slot)
+            nc.TABLE[base + 1:base + nc.ROW] = row[1:]
+            nc.TABLE[nc.H_NSLOTS] = max(int(nc.TABLE[nc.H_NSLOTS]), slot + 1)
+            nc.TABLE[base + nc.C_DATA] = key  # last: the row is complete before the callback can match it
+            _SLOTS[key] = slot
+            _SLOT_HOOKS[key] = (native, friction)
+    nc.TABLE[nc.H_NSLOTS] = max(_SLOTS.values(), default=-1) + 1
+
+
+def _resync(handle: Any) -> None:
+    key = getattr(handle, "_key", None)
+    if key is not None and handle in _REGISTRY.get(key, ()):
+        _sync(key)
+        _ensure_callback()
+
+
+def sync_native_models() -> None:
+    """Copy the native models' addresses into the compiled callback's table (its unregistered-data report)."""
+    nc = sys.modules.get(__package__ + ".native_callback")
+    if nc is None:
+        return
+    addresses = list(_native_models())[: nc.MAX_MODELS]
+    nc.TABLE[nc.H_NMODELS] = 0
+    nc.TABLE[nc.H_MODELS:nc.H_MODELS + len(addresses)] = addresses
+    nc.TABLE[nc.H_NMODELS] = len(addresses)
+    if _REGISTRY and _COMPILED and len(_native_models()) > nc.MAX_MODELS:
+        _ensure_callback()  # too many to list: the Python callback reports them
+
+
+def _wanted_callback() -> Any:
+    """The compiled callback, unless the fallback is asked for or some registration needs Python."""
+    if not COMPILED_CALLBACK or _UNFIT:
+        return _C_CALLBACK[0]
+    nc = _table()
+    if len(_native_models()) > nc.MAX_MODELS:
+        return _C_CALLBACK[0]
+    if not _COMPILED:
+        from .jit import sigint_deferred
+
+        with sigint_deferred():
+            _COMPILED.append(nc.build())
+        sync_native_models()
+    return _COMPILED[0]
+
+
+_COMPILED: list[Any] = []
 
 
 def _ensure_callback() -> None:
@@ -714,14 +894,15 @@ def _ensure_callback() -> None:
     if sys.unraisablehook is not _unraisable_hook:
         _PREVIOUS_UNRAISABLE[:] = [sys.unraisablehook]
         sys.unraisablehook = _unraisable_hook
+    wanted = _wanted_callback()
     current = mujoco.get_mjcb_passive()
-    if current is _C_CALLBACK[0]:
+    if current is wanted:
         return
-    if current is not None:
+    if current is not None and current is not _C_CALLBACK[0] and not (_COMPILED and current is _COMPILED[0]):
         raise RuntimeError(
             "another MuJoCo passive callback is installed; cable friction cannot share it"
         )
-    mujoco.set_mjcb_passive(_C_CALLBACK[0])
+    mujoco.set_mjcb_passive(wanted)
 
 
 def _unregister(key: int, handle: Any) -> None:
@@ -733,11 +914,16 @@ def _unregister(key: int, handle: Any) -> None:
         hooks.remove(handle)
     if not hooks:
         _REGISTRY.pop(key, None)
-    if not _REGISTRY and _C_CALLBACK:
+    _sync(key)
+    if _C_CALLBACK:
         import mujoco
 
-        if mujoco.get_mjcb_passive() is _C_CALLBACK[0]:
+        current = mujoco.get_mjcb_passive()
+        ours = current is _C_CALLBACK[0] or (_COMPILED and current is _COMPILED[0])
+        if not _REGISTRY and ours:
             mujoco.set_mjcb_passive(None)
+        elif _REGISTRY and ours:
+            _ensure_callback()  # the last registration needing Python may be gone
 
 
 def _compile_outside_the_callback(model, data, config: CableFrictionConfig, tendon_ids: np.ndarray | None,
