@@ -133,7 +133,7 @@ def test_native_and_spatial_runs_agree_with_friction(mu: float) -> None:
     native, spatial = cp.compile_native(_arm_root("hinge_pair"))
     d_native, d_spatial = cp.make_data(native), mujoco.MjData(spatial)
     config = fr.CableFrictionConfig(mu=mu)
-    h_native = fr.install_cable_friction(native, d_native, config, kernel=cp.native_cables(native).kernel)
+    h_native = fr.install_cable_friction(native, d_native, config, kernel=cp.native_cables(native).data_kernel(d_native))
     h_spatial = fr.install_cable_friction(spatial, d_spatial, config)
     a, b = _drive(native, d_native, 200), _drive(spatial, d_spatial, 200)
     h_native.check()
@@ -187,3 +187,46 @@ def test_native_model_is_dropped_with_its_model() -> None:
     del native, spatial
     gc.collect()
     assert address not in cp._NATIVE_MODELS
+
+
+def test_two_datas_of_one_model_stepped_in_two_threads_do_not_share_scratch() -> None:
+    """The kernels run without the GIL (compiled callback, ``nogil`` kernels): each registered data
+    has its own piece scratch, so two threads stepping two datas of one native model (with cable
+    friction reading the pieces) give each data's single-threaded trajectory bit for bit."""
+    import threading
+
+    native, _ = cp.compile_native(_arm_root("hinge_pair"))
+    cables = cp.native_cables(native)
+    assert cables is not None
+    datas = [cp.make_data(native) for _ in range(2)]
+    handles = [fr.install_cable_friction(native, d, fr.CableFrictionConfig(mu=0.15), kernel=cables.data_kernel(d))
+               for d in datas]
+    assert handles[0].kernel.length is not handles[1].kernel.length
+
+    def run(data: mujoco.MjData, seed: int, out: list[np.ndarray]) -> None:
+        out.append(_drive(native, data, 300, seed=seed))
+
+    alone: list[np.ndarray] = []
+    for seed, data in enumerate(datas):
+        mujoco.mj_resetData(native, data)
+        run(data, seed, alone)
+    together: list[list[np.ndarray]] = [[], []]
+    for data in datas:
+        mujoco.mj_resetData(native, data)
+    for h in handles:
+        h.z[:] = 0.0
+        h.initialised[:] = False
+    threads = [threading.Thread(target=run, args=(d, seed, together[seed])) for seed, d in enumerate(datas)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for h in handles:
+        h.check()
+        h.uninstall()
+    for seed in range(2):
+        np.testing.assert_array_equal(together[seed][0], alone[seed])
+    for d in datas:
+        cp.release_data(d)
+    with pytest.raises(ValueError, match="make_data"):
+        cables.data_kernel(mujoco.MjData(native))

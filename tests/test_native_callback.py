@@ -17,7 +17,7 @@ def _run(compiled: bool, monkeypatch: pytest.MonkeyPatch) -> tuple[np.ndarray, b
     monkeypatch.setattr(fr, "COMPILED_CALLBACK", compiled)
     native, _ = cp.compile_native(_arm_root("hinge_pair"))
     data = cp.make_data(native)
-    handle = fr.install_cable_friction(native, data, fr.CableFrictionConfig(), kernel=cp.native_cables(native).kernel)
+    handle = fr.install_cable_friction(native, data, fr.CableFrictionConfig(), kernel=cp.native_cables(native).data_kernel(data))
     used = bool(fr._COMPILED) and mujoco.get_mjcb_passive() is fr._COMPILED[0]
     state = _drive(native, data, 150, seed=3)
     handle.check()
@@ -41,7 +41,7 @@ def test_compiled_callback_table_follows_registrations() -> None:
     data = cp.make_data(native)
     key = data._address
     assert key in fr._SLOTS and fr._SLOT_HOOKS[key][1] is None  # native hook only
-    handle = fr.install_cable_friction(native, data, fr.CableFrictionConfig(), kernel=cp.native_cables(native).kernel)
+    handle = fr.install_cable_friction(native, data, fr.CableFrictionConfig(), kernel=cp.native_cables(native).data_kernel(data))
     assert fr._SLOT_HOOKS[key][1] is handle
     nc = fr._table()
     assert nc.TABLE[nc.slot_base(fr._SLOTS[key]) + nc.C_DATA] == key
@@ -57,7 +57,7 @@ def test_a_kernel_error_flag_reaches_the_hooks_error() -> None:
     """A kernel error inside the cfunc sets the row's flag (C cannot raise); check() reports it."""
     native, _ = cp.compile_native(_arm_root("hinge_pair"))
     data = cp.make_data(native)
-    handle = fr.install_cable_friction(native, data, fr.CableFrictionConfig(), kernel=cp.native_cables(native).kernel)
+    handle = fr.install_cable_friction(native, data, fr.CableFrictionConfig(), kernel=cp.native_cables(native).data_kernel(data))
     mujoco.mj_step(native, data)
     assert handle.error is None
     nc = fr._table()
@@ -72,7 +72,7 @@ def test_a_kernel_error_flag_reaches_the_hooks_error() -> None:
 def test_a_replaced_apply_falls_back_to_the_python_callback() -> None:
     native, _ = cp.compile_native(_arm_root("hinge_pair"))
     data = cp.make_data(native)
-    handle = fr.install_cable_friction(native, data, fr.CableFrictionConfig(), kernel=cp.native_cables(native).kernel)
+    handle = fr.install_cable_friction(native, data, fr.CableFrictionConfig(), kernel=cp.native_cables(native).data_kernel(data))
     assert mujoco.get_mjcb_passive() is fr._COMPILED[0]
     calls: list[int] = []
     handle.apply = lambda model, d: calls.append(1)  # type: ignore[method-assign]

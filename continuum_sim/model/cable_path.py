@@ -253,6 +253,14 @@ class NativeCables:
         weakref.finalize(model, _drop_model, model._address)
         fr.sync_native_models()
 
+    def data_kernel(self, data: Any) -> Any:
+        """The kernel (routing and scratch) of ``data``'s native cable hook: where the pieces of
+        the step are (cable friction reads them). ``data`` must come from :meth:`make_data`."""
+        for hook in fr._REGISTRY.get(data._address, ()):
+            if isinstance(hook, _NativeData) and hook.cables is self and hook._data_ref() is data:
+                return hook.kernel
+        raise ValueError("native cables: this MjData was not made by NativeCables.make_data")
+
     @property
     def model(self) -> Any:
         """The model to simulate (fixed tendons); it must still exist."""
@@ -279,6 +287,7 @@ class _NativeData:
 
     def __init__(self, cables: NativeCables, data: Any) -> None:
         self.cables = cables
+        self.kernel = cables.kernel.for_data()  # scratch of its own: the kernel runs without the GIL
         self._model_ref = cables._model_ref
         self._data_ref = weakref.ref(data)
         self._key = data._address
@@ -307,7 +316,7 @@ class _NativeData:
 
     def table_arrays(self) -> tuple[Any, ...]:
         """The kernel's array arguments, in order (``native_callback.NATIVE_ARRAYS``)."""
-        n, k = self.cables, self.cables.kernel
+        n, k = self.cables, self.kernel
         r = k.routing
         (qvel, site_xpos, xaxis, xanchor, xmat, ten_length, ten_J, ten_velocity, actuator_length, actuator_velocity,
          actuator_moment, moment_rowadr, qfrc_spring, qfrc_damper, qfrc_passive) = self._views
@@ -322,7 +331,7 @@ class _NativeData:
         )  # fmt: skip
 
     def apply(self, model: Any, data: Any) -> None:  # noqa: ARG002 - the passive hook's signature
-        n, k = self.cables, self.cables.kernel
+        n, k = self.cables, self.kernel
         r = k.routing
         (qvel, site_xpos, xaxis, xanchor, xmat, ten_length, ten_J, ten_velocity, actuator_length, actuator_velocity,
          actuator_moment, moment_rowadr, qfrc_spring, qfrc_damper, qfrc_passive) = self._views

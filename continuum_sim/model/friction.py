@@ -33,6 +33,7 @@ a compiled model through MuJoCo's passive-force callback, without touching the m
 
 from __future__ import annotations
 
+import copy
 import itertools
 import os
 import re
@@ -493,6 +494,18 @@ class CableKernel:
         self.grad = np.zeros((n_pieces, 3))
         self._fn = kernels()["cable_pieces"]
 
+    def for_data(self) -> CableKernel:
+        """A kernel sharing this one's routing with scratch of its own (copies of ``seg_R``, new
+        ``seg_w``/``length``/``direction``/``grad``): the kernels run without the GIL, so two
+        datas of one model stepped in two threads must not write the same scratch."""
+        other = copy.copy(self)
+        other.seg_R = self.seg_R.copy()
+        other.seg_w = np.zeros_like(self.seg_w)
+        other.length = np.zeros_like(self.length)
+        other.direction = np.zeros_like(self.direction)
+        other.grad = np.zeros_like(self.grad)
+        return other
+
     def evaluate(self, qpos: np.ndarray) -> None:
         r = self.routing
         self._fn(
@@ -951,8 +964,8 @@ def install_cable_friction(
     With μ = 0 nothing is registered (the model runs exactly as before) and the handle
     reports anchor ratios of 1. The stick/slip state starts neutral (z = 0) at the first
     evaluation; it lives in the handle, keyed to this ``data`` (dropped when it is freed).
-    ``kernel``: a native-cable model's ``NativeCables.kernel`` (its routing; it evaluates
-    the pieces before friction in the same callback).
+    ``kernel``: the native cable path's kernel of this ``data`` (``NativeCables.data_kernel``:
+    it evaluates the pieces before friction in the same callback, friction reads them).
     """
     handle = CableFriction(model, data, config, tendon_ids, kernel)
     if handle.active:

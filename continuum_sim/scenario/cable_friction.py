@@ -33,7 +33,7 @@ class CableFrictionObserver(Observer):
         tendons = np.concatenate([np.asarray(h.cable_tendons[arm], dtype=np.int64) for arm in h.arms])
         native = native_cables(sim.model)  # its kernel evaluates the pieces first in the same callback
         self.handle = install_cable_friction(sim.model, sim.data, self.config, None if native else tendons,
-                                             None if native is None else native.kernel)
+                                             None if native is None else native.data_kernel(sim.data))
         index = {int(t): i for i, t in enumerate(self.handle.kernel.routing.tendon_ids)}
         self.columns = {arm: np.array([index[int(t)] for t in h.cable_tendons[arm]]) for arm in h.arms}
         self.rows = {arm: [] for arm in h.arms}
