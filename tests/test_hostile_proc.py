@@ -268,3 +268,4 @@ def test_interrupt_inside_the_friction_callback_is_kept_and_reraised(monkeypatch
     assert isinstance(handle.error, KeyboardInterrupt)
     with pytest.raises(KeyboardInterrupt):
         handle.check()
+    handle.uninstall()  # leave no registration behind for the tests after this one

@@ -314,6 +314,11 @@ class _NativeData:
         if name == "apply":  # a replaced apply (tests) only runs through the Python callback
             fr._resync(self)
 
+    def __delattr__(self, name: str) -> None:
+        object.__delattr__(self, name)
+        if name == "apply":  # the class's apply is back: the table may run it again
+            fr._resync(self)
+
     def table_arrays(self) -> tuple[Any, ...]:
         """The kernel's array arguments, in order (``native_callback.NATIVE_ARRAYS``)."""
         n, k = self.cables, self.kernel

@@ -604,6 +604,11 @@ class CableFriction:
         if name == "apply":  # a replaced apply (tests) only runs through the Python callback
             _resync(self)
 
+    def __delattr__(self, name: str) -> None:
+        object.__delattr__(self, name)
+        if name == "apply":  # the class's apply is back (a test's monkeypatch undone): the table may run it again
+            _resync(self)
+
     def table_arrays(self) -> tuple[Any, ...]:
         """The kernel's array arguments, in order (``native_callback.FRICTION_ARRAYS``)."""
         r, k = self.kernel.routing, self.kernel
@@ -777,8 +782,9 @@ def _row_for(key: int, hooks: list[Any]) -> tuple[Any, Any, np.ndarray] | None:
     native = friction = None
     for handle in hooks:
         kind = getattr(handle, "table_kind", None)
-        if "apply" in vars(handle):  # replaced on the instance: only Python can call it
-            return None
+        own = vars(handle).get("apply")  # replaced on the instance: only Python can call it
+        if own is not None and not (getattr(own, "__func__", None) is type(handle).apply and own.__self__ is handle):
+            return None  # (the class's own method set back on the instance, as undoing a monkeypatch does, is fine)
         if kind == "native" and native is None and friction is None:
             native = handle
         elif kind == "friction" and friction is None and handle.active:
