@@ -63,15 +63,28 @@ def min_backbone_distance(centres_a: Array, radii_a: Array, centres_b: Array, ra
 
 
 def min_backbone_distances(centres_a: Array, radii_a: Array, centres_b: Array, radii_b: Array, chunk: int = 256) -> Array:
-    """``min_backbone_distance`` of every frame of (N, na, 3) and (N, nb, 3) disk-centre series."""
+    """``min_backbone_distance`` of every frame of (N, na, 3) and (N, nb, 3) disk-centre series.
+
+    The centre gaps are summed coordinate by coordinate in ``np.linalg.norm``'s order
+    ((x² + y²) + z², the same numbers), without its slow reduction over a length-3 axis
+    and with one (chunk, na, nb) buffer reused in place.
+    """
     centres_a = np.asarray(centres_a, dtype=float)
     centres_b = np.asarray(centres_b, dtype=float)
     radii = np.asarray(radii_a)[:, None] + np.asarray(radii_b)[None, :]
     out = np.empty(len(centres_a))
-    for start in range(0, len(centres_a), chunk):  # bounded memory: chunk × na × nb × 3
+    for start in range(0, len(centres_a), chunk):  # bounded memory: chunk × na × nb
         a, b = centres_a[start : start + chunk], centres_b[start : start + chunk]
-        d = np.linalg.norm(a[:, :, None, :] - b[:, None, :, :], axis=-1)
-        out[start : start + chunk] = np.min(d - radii, axis=(1, 2))
+        total = np.subtract(a[:, :, None, 0], b[:, None, :, 0])
+        np.multiply(total, total, out=total)
+        gap = np.empty_like(total)
+        for j in range(1, a.shape[-1]):
+            np.subtract(a[:, :, None, j], b[:, None, :, j], out=gap)
+            np.multiply(gap, gap, out=gap)
+            np.add(total, gap, out=total)
+        np.sqrt(total, out=total)
+        np.subtract(total, radii, out=total)
+        out[start : start + chunk] = total.reshape(len(a), -1).min(axis=1)
     return out
 
 
