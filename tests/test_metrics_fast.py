@@ -112,3 +112,29 @@ def test_polyline_distance_without_pruning_is_the_loop(monkeypatch):
     monkeypatch.setattr(met, "MAX_CANDIDATE_PAIRS", 10)
     assert met._segment_candidates(points, line, 1e-9 * np.abs(line).max()) is None
     _same(points, line)
+
+
+def test_cutting_record_rows_become_the_arrays_np_stack_gave():
+    """``CuttingObserver.record`` builds its series with np.array: the rows it records (NumPy and
+    Python scalars, bools, small arrays) give np.stack's dtype, shape and values."""
+    from types import SimpleNamespace
+
+    from continuum_sim.model.cutting import CuttingObserver
+
+    rng = np.random.default_rng(4)
+    observer = CuttingObserver.__new__(CuttingObserver)
+    observer.rows = {
+        "vector": [rng.normal(size=3) for _ in range(50)],
+        "numpy_float": [np.float64(x) for x in rng.normal(size=50)],
+        "python_float": [float(x) for x in rng.normal(size=50)],
+        "bool": [bool(x) for x in rng.integers(0, 2, 50)],
+        "mixed_bool": [np.bool_(True), False, True, np.bool_(False)],
+        "empty": [],
+    }
+    grid = SimpleNamespace(cut_map=lambda: np.zeros((2, 2)), lo=np.zeros(3), h=np.ones(3))
+    observer.cutter = SimpleNamespace(grid=grid, spindle=SimpleNamespace(events=[]))
+    series = observer.record().series
+    for key, rows in observer.rows.items():
+        expected = np.stack(rows) if rows else np.zeros((0,))
+        assert series[key].dtype == expected.dtype and series[key].shape == expected.shape, key
+        np.testing.assert_array_equal(series[key], expected)
