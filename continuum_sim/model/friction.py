@@ -650,8 +650,7 @@ class CableFriction:
         if not self.active:
             return out
         last = self.piece_tension[r.cable_end - 1]
-        ok = self.tension > 1e-9
-        out[ok] = last[ok] / self.tension[ok]
+        np.divide(last, self.tension, out=out, where=self.tension > 1e-9)  # (the same quotients, no masked copies)
         return out
 
     def wraps(self) -> np.ndarray:
@@ -819,6 +818,8 @@ def _harvest(key: int, slot: int) -> None:
     """Move the error flags of ``key``'s table row into its hooks' ``error``."""
     nc = _table()
     base = nc.slot_base(slot)
+    if not (nc.TABLE[base + nc.C_ERR_NATIVE] or nc.TABLE[base + nc.C_ERR_FRICTION]):
+        return  # (the per-tick case: nothing flagged, nothing to move)
     for handle, column in zip(_SLOT_HOOKS.get(key, (None, None)), (nc.C_ERR_NATIVE, nc.C_ERR_FRICTION)):
         if handle is not None and nc.TABLE[base + column] and handle._error is None:
             handle._error = RuntimeError("the compiled passive callback: the kernel raised (run with "
