@@ -282,8 +282,8 @@ class NativeCables:
         return data
 
 
-class _NativeData:
-    """The per-data hook: views into one MjData's buffers, the shared kernel and maps."""
+class _NativeData(fr.TableHook):
+    """The per-data hook: views into one MjData's buffers, its own kernel scratch, the shared maps."""
 
     def __init__(self, cables: NativeCables, data: Any) -> None:
         self.cables = cables
@@ -297,27 +297,6 @@ class _NativeData:
                        data.moment_rowadr, data.qfrc_spring, data.qfrc_damper, data.qfrc_passive)
 
     table_kind = "native"
-
-    @property
-    def error(self) -> BaseException | None:
-        """The first error the passive callback met in this hook (None: none)."""
-        if self._error is None and fr._SLOTS:
-            fr._table_error(self)
-        return self._error
-
-    @error.setter
-    def error(self, value: BaseException | None) -> None:
-        self._error = value
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        object.__setattr__(self, name, value)
-        if name == "apply":  # a replaced apply (tests) only runs through the Python callback
-            fr._resync(self)
-
-    def __delattr__(self, name: str) -> None:
-        object.__delattr__(self, name)
-        if name == "apply":  # the class's apply is back: the table may run it again
-            fr._resync(self)
 
     def table_arrays(self) -> tuple[Any, ...]:
         """The kernel's array arguments, in order (``native_callback.NATIVE_ARRAYS``)."""
@@ -336,19 +315,7 @@ class _NativeData:
         )  # fmt: skip
 
     def apply(self, model: Any, data: Any) -> None:  # noqa: ARG002 - the passive hook's signature
-        n, k = self.cables, self.kernel
-        r = k.routing
-        (qvel, site_xpos, xaxis, xanchor, xmat, ten_length, ten_J, ten_velocity, actuator_length, actuator_velocity,
-         actuator_moment, moment_rowadr, qfrc_spring, qfrc_damper, qfrc_passive) = self._views
-        n._fn(
-            qvel, site_xpos, xaxis, xanchor, xmat, n.piece_psite, n.piece_csite, n.seg_jnt, r.seg_njnt, r.seg_ball,
-            n.piece_base, r.piece_seg, r.cable_start, r.cable_end, r.tendon_ids, n.piece_jadr,
-            n.ten_rowadr, n.ten_rownnz, n.ten_colind, n.ten_stiffness, n.ten_damping, n.ten_spring,
-            n.act_ids, n.act_owner, n.act_gear, moment_rowadr,
-            k.length, k.direction, k.grad,
-            ten_length, ten_J, ten_velocity, actuator_length, actuator_velocity, actuator_moment,
-            qfrc_spring, qfrc_damper, qfrc_passive,
-        )  # fmt: skip
+        self.cables._fn(*self.table_arrays())
 
 
 # Models with native cables (address -> NativeCables, dropped when the model is freed): the

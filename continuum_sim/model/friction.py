@@ -534,7 +534,39 @@ class CableKernel:
 
 
 # ------------------------------------------------------------------- the passive hook
-class CableFriction:
+class TableHook:
+    """What a passive hook needs to be run by the compiled callback's table (``native_callback``):
+    ``error`` also reads the table's flags, and replacing ``apply`` on the instance (tests) moves
+    the hook to the Python callback until the class's own method is back. Subclasses set
+    ``table_kind``, ``_key`` (their data's address) and ``_error``, and define ``table_arrays``."""
+
+    table_kind = ""
+    _key: int
+    _error: BaseException | None
+
+    @property
+    def error(self) -> BaseException | None:
+        """The first error the passive callback met in this hook (None: none)."""
+        if self._error is None and _SLOTS:
+            _table_error(self)
+        return self._error
+
+    @error.setter
+    def error(self, value: BaseException | None) -> None:
+        self._error = value
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        object.__setattr__(self, name, value)
+        if name == "apply":  # a replaced apply (tests) only runs through the Python callback
+            _resync(self)
+
+    def __delattr__(self, name: str) -> None:
+        object.__delattr__(self, name)
+        if name == "apply":  # the class's apply is back (a test's monkeypatch undone): the table may run it again
+            _resync(self)
+
+
+class CableFriction(TableHook):
     """Capstan friction with stick/slip on the cables of one (model, data) pair.
 
     Created by :func:`install_cable_friction`; holds the per-hole states. ``active`` is
@@ -587,27 +619,6 @@ class CableFriction:
         self._error: BaseException | None = None
 
     table_kind = "friction"
-
-    @property
-    def error(self) -> BaseException | None:
-        """The first error the passive callback met in this hook (None: none)."""
-        if self._error is None and _SLOTS:
-            _table_error(self)
-        return self._error
-
-    @error.setter
-    def error(self, value: BaseException | None) -> None:
-        self._error = value
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        object.__setattr__(self, name, value)
-        if name == "apply":  # a replaced apply (tests) only runs through the Python callback
-            _resync(self)
-
-    def __delattr__(self, name: str) -> None:
-        object.__delattr__(self, name)
-        if name == "apply":  # the class's apply is back (a test's monkeypatch undone): the table may run it again
-            _resync(self)
 
     def table_arrays(self) -> tuple[Any, ...]:
         """The kernel's array arguments, in order (``native_callback.FRICTION_ARRAYS``)."""
