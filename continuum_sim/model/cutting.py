@@ -222,7 +222,6 @@ class FoamCutter:
         self._wrench, self._delta = np.zeros(6), np.zeros(6)
         self._applied_force = np.zeros(6)
         self._fv: np.ndarray | None = None
-        self._native_step: Any = None
         self._native_tick: Any = None
         self._scratch_acc = np.zeros(ck.N_A)  # ``step``'s sums (nobody reads them)
         if self._native is not None:
@@ -529,7 +528,7 @@ class FoamCutter:
             assert view.dtype == np.float64 and view.flags.c_contiguous, slot
             iv[slot] = view.ctypes.data
         self._fv, self._iv = fv, iv
-        self._native_step, self._native_tick = kernels["step"], kernels["tick"]
+        self._native_tick = kernels["tick"]  # (``_step`` inside it)
 
     def _overlap(self, cx: float, cy: float, z0: float, z1: float) -> tuple[Any, ...]:
         """numpy path: (layer weights, i0, i1, j0, j1, k0, k1, dx, dy, inside) with ``inside`` the
