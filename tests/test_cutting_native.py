@@ -11,6 +11,7 @@ import pytest
 from test_cutting import OFFSET, SPEED, cut_path, make
 
 from continuum_sim.configio import ConfigError
+from continuum_sim.model import cutting_kernels as ck
 from continuum_sim.model.cutting import CutState, FoamOptions
 from continuum_sim.model.scene import SceneOptions
 from continuum_sim.model.tools import ToolOptions
@@ -22,9 +23,13 @@ def _rig(native: bool, tools: ToolOptions | None = None):
     return make(SceneOptions(foam=FoamOptions(native=native), tools=tools or ToolOptions()))
 
 
-def _lockstep(tools: ToolOptions | None = None, spindle=lambda t: SPEED, feed=0.04, jitter=(0.0008, 7.0), until=None):
+def _lockstep(tools: ToolOptions | None = None, spindle=lambda t: SPEED, feed=0.04, jitter=(0.0008, 7.0), until=None,
+              sums=False):
     """Both paths driven along the L cut (with back-and-forth jitter, which exercises the
-    recent-centres exclusion); asserts every step's CutState, the grid and the MuJoCo state equal."""
+    recent-centres exclusion); asserts every step's CutState, the grid and the MuJoCo state equal.
+    With ``sums`` each step is ``FoamCutter.tick`` (the observer's hook: the native cutter's
+    one fused call) into sums reset every other step, as the observer's per tick; the sums,
+    the spindle loop's state and events and the set-point must be equal too."""
     rigs = [_rig(True, tools), _rig(False, tools)]
     points = cut_path()
     cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
@@ -42,23 +47,35 @@ def _lockstep(tools: ToolOptions | None = None, spindle=lambda t: SPEED, feed=0.
     counts = {"steps": 0, "feeding": 0, "removing": 0, "blocked": 0, "checks": 0, "far": 0, "fused": 0, "python": 0}
     (m1, d1, c1), (m2, d2, c2) = rigs
     assert c1._fv is not None and c2._fv is None  # the native cutter runs the fused step
-    fused = c1._native_step
+    fused = c1._native_tick
 
     def counted(*args):
-        outcome, n = fused(*args)
-        counts[("far", "fused", "python")[outcome]] += 1
-        return outcome, n
+        flags = fused(*args)
+        counts[("far", "fused", "python")[int(c1._fv[ck.F_OUTCOME])]] += 1
+        return flags
 
-    c1._native_step = counted
+    c1._native_tick = counted
+    accs = [np.zeros(ck.N_A), np.zeros(ck.N_A)]
     while d1.time < duration:
         s = feed * max(d1.time - 0.5, 0.0) + jitter[0] * math.sin(2 * math.pi * jitter[1] * d1.time)
         states = []
-        for model, data, cutter in rigs:
+        for (model, data, cutter), acc in zip(rigs, accs, strict=True):
             data.mocap_pos[model.body("left_target").mocapid[0]] = at(s) - OFFSET
-            states.append(cutter.step(spindle(data.time)))
+            if sums:
+                if counts["steps"] % 2 == 0:
+                    acc[:] = 0.0
+                cutter.tick(spindle(data.time), acc)
+                states.append(cutter.state)
+            else:
+                states.append(cutter.step(spindle(data.time)))
             mujoco.mj_step(model, data)
             cutter.after_step()
         a, b = states
+        if sums:
+            assert np.array_equal(accs[0], accs[1]), (d1.time, accs)
+            assert np.array_equal(d1.ctrl, d2.ctrl), d1.time
+            for name in ("integral", "stalled", "low_since", "events"):
+                assert getattr(c1.spindle, name) == getattr(c2.spindle, name), (d1.time, name)
         for name in STATE_FIELDS:
             assert np.array_equal(getattr(a, name), getattr(b, name)), (d1.time, name, getattr(a, name), getattr(b, name))
         assert c1.removed_volume == c2.removed_volume and c1.detach_time == c2.detach_time
@@ -90,6 +107,37 @@ def test_native_cutter_equals_numpy_when_blocked():
     counts, cutter = _lockstep(spindle=lambda t: SPEED if t < 0.9 or t > 1.3 else 0.0, until=1.6)
     assert counts["blocked"] > 10 and counts["removing"] > 10
     assert counts["python"] >= counts["blocked"] and counts["fused"] > 10  # (the block spring is Python's)
+
+
+def test_fused_tick_equals_python_through_a_stall_and_its_recovery():
+    """The observer's hook (``FoamCutter.tick``): one compiled call natively (spindle loop,
+    step, sums) against the Python path. It cuts; a command beyond the spindle's top speed
+    trips the stall (the stalled cutter pressed into the foam: the block spring); the command
+    off re-arms it; the command back spins it up and it cuts again."""
+    over = 3.0 * ToolOptions().spindle_max_speed  # unreachable: speed < stall fraction × command
+
+    def command(t):
+        return SPEED if t < 0.8 else over if t < 1.4 else 0.0 if t < 1.45 else SPEED
+
+    counts, cutter = _lockstep(spindle=command, until=2.2, sums=True)
+    events = cutter.spindle.events
+    assert len(events) == 1 and events[0][1] == "stall" and 1.29 < events[0][0] < 1.4
+    assert not cutter.stalled and cutter.spindle.integral != 0.0 and cutter.spindle_speed == pytest.approx(SPEED, rel=0.05)
+    assert counts["blocked"] > 10 and counts["python"] >= counts["blocked"]
+    # (feeding from 0.5 s: at most 800 steps before the stall, so it cut after the recovery too)
+    assert counts["fused"] > 1000 and counts["far"] > 0 and counts["feeding"] > 1000
+
+
+def test_spindle_loop_state_is_a_view_of_the_fused_step():
+    """The native cutter's SpindleLoop reads and writes the fused step's slots: a reset or
+    a Python ``control`` call there is what the kernel sees next."""
+    _, _, cutter = _rig(True)
+    spindle = cutter.spindle
+    assert np.shares_memory(spindle.state, cutter._fv)
+    spindle.integral, spindle.low_since, spindle.stalled = 1e-3, 0.25, True
+    assert cutter._fv[ck.F_SP:ck.F_SP + 4].tolist() == [1e-3, 1.0, 1.0, 0.25]
+    spindle.reset()
+    assert (spindle.integral, spindle.stalled, spindle.low_since) == (0.0, False, None)
 
 
 def test_fused_step_hypot_equals_math_hypot():

@@ -34,10 +34,10 @@ cutter can reach (the whole plate outside the clamped strip, sample included) at
   no longer connected to the clamped edge. Then the weld ``sample_weld`` is released and
   every voxel that lost its connection leaves the grid (it went with the sample).
 
-Each step after the spindle's set-point (near test, engagement, force with the implicit
-feed, removal, wrench) runs as one numba kernel, and the connectivity check as another
-(``cutting_kernels``), unless ``FoamOptions.native`` is false; both paths give bit-identical
-results. (A cutter pressed into material while not cutting, the block spring, takes the
+Each step (spindle loop, near test, engagement, force with the implicit feed, removal,
+wrench, and the observer's sums) runs as one numba kernel, and the connectivity check as
+another (``cutting_kernels``), unless ``FoamOptions.native`` is false; both paths give
+bit-identical results. (A cutter pressed into material while not cutting, the block spring, takes the
 Python path in either case.)
 
 The forces are added to ``xfrc_applied``/``qfrc_applied`` (what was added the step before
@@ -222,9 +222,10 @@ class FoamCutter:
         self._wrench, self._delta = np.zeros(6), np.zeros(6)
         self._applied_force = np.zeros(6)
         self._fv: np.ndarray | None = None
-        self._native_step: Any = None
+        self._native_tick: Any = None
+        self._scratch_acc = np.zeros(ck.N_A)  # ``step``'s sums (nobody reads them)
         if self._native is not None:
-            self._fuse(data, self._native["step"])
+            self._fuse(data, self._native)
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -234,6 +235,7 @@ class FoamCutter:
         self.spindle.reset()
         self.model.geom_rgba[self._band, 3] = self._band_alpha
         self.data.eq_active[self.weld] = 1
+        self._removed_volume = 0.0
         self.state = CutState()
         self.detach_time: float | None = None
         self.removed_volume = 0.0
@@ -246,6 +248,7 @@ class FoamCutter:
         self._recent_i = 0
         if self._fv is not None:
             self._fv[ck.F_TORQUE_APPLIED] = 0.0
+            self._fv[ck.F_DIRTY] = self._fv[ck.F_UNBLOCK] = 0.0
             self._iv[ck.I_RI] = 0
         self._block: tuple[float, float, float, float, float] | None = None
         self.checks = 0
@@ -253,6 +256,50 @@ class FoamCutter:
     @property
     def detached(self) -> bool:
         return self.detach_time is not None
+
+    # The fused native step (``cutting_kernels._tick``) keeps these in its slots.
+    @property
+    def removed_volume(self) -> float:
+        """Material the cutter removed (m³)."""
+        fv = self._fv
+        return self._removed_volume if fv is None else fv.item(ck.F_REMOVED)
+
+    @removed_volume.setter
+    def removed_volume(self, value: float) -> None:
+        if self._fv is None:
+            self._removed_volume = value
+        else:
+            self._fv[ck.F_REMOVED] = value
+
+    @property
+    def state(self) -> CutState:
+        """What the cutter did in the last step; after a fused step built only when read."""
+        fv = self._fv
+        if fv is not None and fv[ck.F_LAZY] != 0.0:
+            fv[ck.F_LAZY] = 0.0
+            self._state = self._fused_state(fv)
+        return self._state
+
+    @state.setter
+    def state(self, value: CutState) -> None:
+        self._state = value
+        if self._fv is not None:
+            self._fv[ck.F_LAZY] = 0.0
+
+    @staticmethod
+    def _fused_state(fv: np.ndarray) -> CutState:
+        """The CutState of the fused step's outputs ``fv[F_OUT:]``."""
+        kind = fv[ck.F_KIND]
+        if kind == 0.0:
+            return _IDLE
+        if kind == 1.0:
+            fx, fy, feed_force, normal_force, torque, mrr, power, depth, chip, speed, cutting = fv[ck.F_OUT:ck.F_KIND].tolist()
+            return CutState(force=np.array([fx, fy, 0.0]), feed_force=feed_force, normal_force=normal_force,
+                            torque=torque, mrr=mrr, power=power, depth=depth, chip=chip, feed_speed=speed,
+                            cutting=cutting != 0.0)
+        state = CutState()
+        state.cutting = True
+        return state
 
     # Progress views over the planned kerf band's voxel columns (what the kerf cells were).
     @property
@@ -285,46 +332,50 @@ class FoamCutter:
     def step(self, spindle_reference: float) -> CutState:
         """Before one ``mj_step``: spindle set-point, cutting force and torque, removal.
 
-        It runs every physics step: natively one kernel call (``cutting_kernels._step``) and
-        the ``CutState``; else ``_step``, written in scalar floats where it can.
-        """
+        Natively one kernel call (``tick``); else the spindle loop and ``_step`` in Python."""
+        if self._native_tick is not None:
+            self.tick(spindle_reference, self._scratch_acc)
+            return self.state
         data = self.data
         dt = float(self._opt.timestep)
         omega = self._qvel.item(self.spindle_dof)
         time = float(data.time)
         self._ctrl[self.spindle_actuator] = self.spindle.control(spindle_reference, omega, time, dt)
-        fv = self._fv
-        if fv is None:
-            return self._step(omega, dt)
-        fv[ck.F_DT] = dt
-        fv[ck.F_OMEGA] = omega
-        fv[ck.F_TIME] = time
-        fv[ck.F_STALLED] = 1.0 if self.spindle.stalled else 0.0
+        return self._step(omega, dt)
+
+    def tick(self, spindle_reference: float, acc: np.ndarray) -> None:
+        """``step``, its CutState added to the sums ``acc`` (``cutting_kernels.N_A`` slots:
+        ``CuttingObserver``'s, in its order). It runs every physics step: natively one call
+        of ``cutting_kernels._tick`` (the spindle loop included; the CutState is built only
+        if ``state`` is read), the Python path only where the kernel declines."""
+        native = self._native_tick
+        if native is None:
+            before = self.removed_volume
+            _add(acc, self.step(spindle_reference), self.removed_volume > before)
+            return
         grid = self.grid
-        outcome, n_inside = self._native_step(grid.material, grid.cut, grid.removed_at, self._recent, fv, self._iv)
-        if outcome == ck.STEP_PYTHON:
-            # Near the material, not cutting: the Python path (with the fused step's state).
-            self._recent_i, self._applied_torque = int(self._iv[ck.I_RI]), float(fv[ck.F_TORQUE_APPLIED])
-            state = self._step(omega, dt)
-            self._iv[ck.I_RI], fv[ck.F_TORQUE_APPLIED] = self._recent_i, self._applied_torque
-            return state
-        self._block = None
-        if n_inside:
-            self.removed_volume += n_inside * grid.voxel_volume
-            self._dirty = True
-        kind = fv[ck.F_KIND]
-        if kind == 0.0:
-            state = _IDLE
-        elif kind == 1.0:
-            fx, fy, feed_force, normal_force, torque, mrr, power, depth, chip, speed, cutting = fv[ck.F_OUT:ck.F_KIND].tolist()
-            state = CutState(force=np.array([fx, fy, 0.0]), feed_force=feed_force, normal_force=normal_force,
-                             torque=torque, mrr=mrr, power=power, depth=depth, chip=chip, feed_speed=speed,
-                             cutting=cutting != 0.0)
-        else:
-            state = CutState()
-            state.cutting = True
-        self.state = state
-        return state
+        flags = native(grid.material, grid.cut, grid.removed_at, self._recent, self._fv, self._iv, acc,
+                       spindle_reference, self.data.time, self._opt.timestep)
+        if flags:
+            self._declined(flags, acc)
+
+    def _declined(self, flags: int, acc: np.ndarray) -> None:
+        """After ``_tick``: the stall event it tripped, and the step it left to the Python path
+        (near the material, not cutting) with the fused step's state."""
+        fv, iv = self._fv, self._iv
+        assert fv is not None
+        omega = fv.item(ck.F_OMEGA)
+        if flags & ck.TICK_STALL:
+            self.spindle.events.append((fv.item(ck.F_TIME), "stall", omega))
+        if flags & ck.TICK_PYTHON:
+            if fv[ck.F_UNBLOCK] != 0.0:  # a fused step ran since the last Python one: no contact then
+                fv[ck.F_UNBLOCK] = 0.0
+                self._block = None
+            self._recent_i, self._applied_torque = int(iv[ck.I_RI]), float(fv[ck.F_TORQUE_APPLIED])
+            before = self.removed_volume
+            state = self._step(omega, fv.item(ck.F_DT))
+            iv[ck.I_RI], fv[ck.F_TORQUE_APPLIED] = self._recent_i, self._applied_torque
+            _add(acc, state, self.removed_volume > before)
 
     def _step(self, omega: float, dt: float) -> CutState:
         """``step`` after the spindle's set-point, in Python (``native`` false, and the native
@@ -447,12 +498,18 @@ class FoamCutter:
         self.state = state
         return state
 
-    def _fuse(self, data: mujoco.MjData, step: Any) -> None:
-        """Set up the fused step (``cutting_kernels._step``): its constants and state in one
+    def _fuse(self, data: mujoco.MjData, kernels: dict[str, Any]) -> None:
+        """Set up the fused step (``cutting_kernels._tick``): its constants and state in one
         float and one int array, the buffers it reads and writes by address (MuJoCo's live as
-        long as ``data``; the others are this cutter's and are kept)."""
-        model, grid, foam = self.model, self.grid, self.foam
+        long as ``data``; the others are this cutter's and are kept). The spindle loop's state
+        becomes a view of its slots (``SpindleLoop.state``)."""
+        model, grid, foam, tools = self.model, self.grid, self.foam, self.tools
         fv = np.zeros(ck.N_F)
+        fv[ck.F_SP_OPT:ck.F_SP_OPT + 6] = (tools.spindle_kv, tools.spindle_ki, tools.spindle_max_torque,
+                                           tools.spindle_stall_fraction, tools.spindle_stall_time, tools.spindle_max_speed)
+        fv[ck.F_SP:ck.F_SP + 4] = self.spindle.state
+        self.spindle.state = fv[ck.F_SP:ck.F_SP + 4]
+        fv[ck.F_VOXEL] = grid.voxel_volume
         fv[ck.F_ZMID], fv[ck.F_HALF], fv[ck.F_R], fv[ck.F_PROBE] = self._z_mid, self.half_length, self.radius, self._probe
         fv[ck.F_PROBE2], fv[ck.F_MIN_SPEED], fv[ck.F_U] = self._probe2, foam.min_cutting_speed, self.u
         fv[ck.F_RADIAL], fv[ck.F_INERTIA] = foam.radial_ratio, self.spindle_inertia
@@ -465,12 +522,13 @@ class FoamCutter:
         iv[ck.I_BODY], iv[ck.I_NV], iv[ck.I_M], iv[ck.I_D] = self.body, model.nv, model._address, data._address
         iv[ck.I_JAC], iv[ck.I_SOLVE], iv[ck.I_NPROBE], iv[ck.I_TWO] = jac, solve, len(self._theta), 2
         views = (self._xpos_row, self._xmat_row, self._cvel_row, self._com_row, self._xipos_row, self._xfrc_row,
-                 self._qfrc[self.spindle_dof:], self._qacc, self._jac, self._minv_jt, self._point, *self._consts)
+                 self._qfrc[self.spindle_dof:], self._qacc, self._jac, self._minv_jt, self._point, *self._consts,
+                 self._qvel[self.spindle_dof:], self._ctrl[self.spindle_actuator:])
         for slot, view in enumerate(views, start=ck.I_XPOS):
             assert view.dtype == np.float64 and view.flags.c_contiguous, slot
             iv[slot] = view.ctypes.data
         self._fv, self._iv = fv, iv
-        self._native_step = step
+        self._native_tick = kernels["tick"]  # (``_step`` inside it)
 
     def _overlap(self, cx: float, cy: float, z0: float, z1: float) -> tuple[Any, ...]:
         """numpy path: (layer weights, i0, i1, j0, j1, k0, k1, dx, dy, inside) with ``inside`` the
@@ -529,6 +587,10 @@ class FoamCutter:
 
     def after_step(self) -> bool:
         """After ``mj_step`` (any cadence): check connectivity, release the sample. True if freed now."""
+        fv = self._fv
+        if fv is not None and fv[ck.F_DIRTY] != 0.0:  # (the fused step removed material)
+            fv[ck.F_DIRTY] = 0.0
+            self._dirty = True
         if self.detached or not self._dirty:
             return False
         if self.data.time - self._last_check < self.foam.connectivity_period:
@@ -603,9 +665,23 @@ def _compiled_kernels() -> dict[str, Any]:
         fv, iv = np.zeros(ck.N_F), np.zeros(ck.N_I, np.int64)
         fv[ck.F_BOX:ck.F_BOX + 3], fv[ck.F_DT] = 1.0, 1.0
         scratch = np.zeros(32)
-        iv[ck.I_XPOS:ck.I_IC + 1] = scratch.ctypes.data
+        iv[ck.I_XPOS:ck.I_CTRL + 1] = scratch.ctypes.data
         k["step"](material, np.zeros_like(material), np.full((2, 2), np.nan, np.float32), recent, fv, iv)
+        k["tick"](material, np.zeros_like(material), np.full((2, 2), np.nan, np.float32), recent, fv, iv,
+                  np.zeros(ck.N_A), 0.0, 0.0, 1.0)
     return k
+
+
+def _add(acc: np.ndarray, s: CutState, active: bool) -> None:
+    """Add one step's CutState to the sums ``acc`` (``FoamCutter.tick``'s Python path; the
+    fused kernel adds in the same order)."""
+    if s is not _IDLE:  # (adding _IDLE's +0.0s leaves the sums as they are: they are never −0.0)
+        acc[:10] += (*s.force, s.feed_force, s.normal_force, s.torque, s.power, s.mrr, s.depth, s.chip)
+        if s.blocked:
+            acc[ck.A_BLOCKED] = 1.0
+        if active:
+            acc[ck.A_ACTIVE] = 1.0
+    acc[ck.A_STEPS] += 1.0
 
 
 def _id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
@@ -743,42 +819,35 @@ class CuttingObserver:
         self.every = max(1, int(every))
         self.rows: dict[str, list[Any]] = {k: [] for k in RECORD_FIELDS}
         self._row_lists = [self.rows[k] for k in RECORD_FIELDS]
-        self._sum = np.zeros(10)
-        self._steps = 0
-        self._active = self._blocked = False
+        # The sums over the tick's steps (``cutting_kernels.N_A`` slots: the CutState's force
+        # and scalars, "removed something", "blocked", steps), added to by ``FoamCutter.tick``.
+        self._acc = np.zeros(ck.N_A)
         self._reference = 0.0
 
     def start(self, sim: Any) -> None:
         """Nothing to prepare: the cutter was built uncut."""
 
     def before_tick(self, sim: Any) -> None:
+        acc = self._acc
         if sim.tick % self.every == 0:
-            n = max(self._steps, 1)
-            mean = self._sum / n
+            n = max(int(acc[ck.A_STEPS]), 1)
+            mean = acc[:10] / n
             c = self.cutter
             # In RECORD_FIELDS order; scalars as they are (``record`` stacks them), the one
             # array that aliases MuJoCo's state copied (``mean`` is new every tick).
             values = (
-                mean[0:3], mean[3], mean[4], mean[5], mean[6], mean[7], mean[8], mean[9], self._active, self._blocked,
+                mean[0:3], mean[3], mean[4], mean[5], mean[6], mean[7], mean[8], mean[9], acc[ck.A_ACTIVE] != 0.0,
+                acc[ck.A_BLOCKED] != 0.0,
                 c.removed_volume, c._xpos_row.copy(), self._reference, c.spindle_speed, c.stalled,
             )
             for rows, value in zip(self._row_lists, values, strict=True):
                 rows.append(value)
-        self._sum[:] = 0.0
-        self._steps = 0
-        self._active = self._blocked = False
+        acc[:] = 0.0
 
     def before_physics_step(self, sim: Any) -> None:
         commands = getattr(sim, "commands", None)
-        self._reference = float(getattr(commands, "spindle_speed", 0.0) or 0.0)
-        cutter = self.cutter
-        before = cutter.removed_volume
-        s = cutter.step(self._reference)
-        if s is not _IDLE:  # (adding _IDLE's +0.0s leaves the sums as they are: they are never −0.0)
-            self._sum += (*s.force, s.feed_force, s.normal_force, s.torque, s.power, s.mrr, s.depth, s.chip)
-            self._blocked |= s.blocked
-            self._active |= cutter.removed_volume > before
-        self._steps += 1
+        self._reference = reference = float(getattr(commands, "spindle_speed", 0.0) or 0.0)
+        self.cutter.tick(reference, self._acc)
 
     def after_physics_step(self, sim: Any) -> None:
         """Nothing per step after MuJoCo's: removal happens before it."""

@@ -24,6 +24,11 @@ MuJoCo's buffers through addresses, calls ``mj_jac`` and ``mj_solveM`` through t
 addresses (int64 arguments, never baked in, so numba's cache keeps it), reproduces numpy's
 BLAS products (gemm, gemv, dot) and CPython's ``math.hypot`` (``_hypot``: libm's differs).
 
+``tick`` is what the observer's per-step hook runs (``FoamCutter.tick``): the spindle's PI
+loop (``_spindle``, ``tools.SpindleLoop.control`` on a state array the SpindleLoop object
+views), ``step``, the removed volume and the observer's sums, in one call; Python only
+appends a stall event or takes the block-spring step (``TICK_*`` flags).
+
 The BLAS numba calls is SciPy's OpenBLAS, numpy's is its own build of the same library;
 the equality tests would show if a platform's two builds summed differently.
 
@@ -310,15 +315,31 @@ F_BOX = 14  # lo0, lo1, lo2, hi0, hi1, hi2
 F_APPLIED = 20  # the wrench added to xfrc_applied the step before (6)
 F_OUT = 26  # fx, fy, feed_force, normal_force, torque, mrr, power, depth, chip, feed_speed, cutting
 F_KIND = F_OUT + 11
-N_F = F_OUT + 12
+# ``_tick``'s slots: the spindle loop's options (kv, ki, max torque, stall fraction, stall
+# time, max speed), its state (``SpindleLoop.state`` is a view of these four), the voxel
+# volume, the cutter's removed volume, "material was removed since the last connectivity
+# look", "the CutState is in F_OUT.. (not built yet)", "the block spring's contact ended"
+# and the last outcome.
+F_SP_OPT = F_OUT + 12
+F_SP = F_SP_OPT + 6
+F_VOXEL, F_REMOVED, F_DIRTY, F_LAZY, F_UNBLOCK, F_OUTCOME = range(F_SP + 4, F_SP + 10)
+N_F = F_SP + 10
+# The observer's sums (``tick``'s ``acc``): the CutState's force (3), feed force, normal
+# force, torque, power, mrr, depth, chip (as ``CuttingObserver`` adds them), then
+# "removed something", "blocked", the steps.
+A_ACTIVE, A_BLOCKED, A_STEPS = 10, 11, 12
+N_A = 13
 # Slots of the int array ``iv``.
 I_RI, I_NULL, I_BODY, I_NV, I_M, I_D, I_JAC, I_SOLVE, I_NPROBE, I_TWO = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9
 # Addresses (each a contiguous float64 buffer): MuJoCo's rows, the work arrays, the constants.
 (I_XPOS, I_XMAT, I_CVEL, I_COM, I_XIPOS, I_XFRC, I_QFRC, I_QACC, I_JACBUF, I_MINV, I_POINT,
  I_XC, I_YC, I_ZC, I_EDGES, I_LO, I_H, I_COS, I_SIN, I_ICC, I_ICS, I_IC) = range(10, 32)
-N_I = 32
+I_QVEL, I_CTRL = 32, 33  # the spindle's qvel and ctrl entries
+N_I = 34
 # Outcomes of ``step``.
 STEP_FAR, STEP_CUT, STEP_PYTHON = 0, 1, 2
+# Flags ``tick`` returns (0: done).
+TICK_STALL, TICK_PYTHON = 1, 2
 
 
 def _pmax(a: float, b: float) -> float:
@@ -413,7 +434,7 @@ def _step(material: np.ndarray, cut: np.ndarray, removed_at: np.ndarray, recent:
     lo0, lo1, lo2 = fv[F_BOX], fv[F_BOX + 1], fv[F_BOX + 2]
     hi0, hi1, hi2 = fv[F_BOX + 3], fv[F_BOX + 4], fv[F_BOX + 5]
     near = cx + probe > lo0 and cx - probe < hi0 and cy + probe > lo1 and cy - probe < hi1 and z1 > lo2 and z0 < hi2
-    for q in range(F_OUT, N_F):
+    for q in range(F_OUT, F_KIND + 1):
         fv[q] = 0.0
     fx = fy = 0.0
     torque = 0.0
@@ -494,6 +515,85 @@ def _step(material: np.ndarray, cut: np.ndarray, removed_at: np.ndarray, recent:
     return outcome, n_inside
 
 
+def _spindle(fv: np.ndarray, reference: float, speed: float, time: float, dt: float) -> tuple[float, bool]:
+    """``tools.SpindleLoop.control`` on the state in ``fv[F_SP:]`` (integral, stalled, low_since
+    set, low_since), in the same operations (Python's ``min``/``max`` as ``_pmin``/``_pmax``):
+    (the actuator set-point, whether a stall tripped now; the caller appends the event)."""
+    if reference <= 0.0:
+        fv[F_SP] = 0.0
+        fv[F_SP + 1] = 0.0
+        fv[F_SP + 2] = 0.0
+        fv[F_SP + 3] = 0.0
+        return 0.0, False
+    if fv[F_SP + 1] != 0.0:
+        return 0.0, False
+    kv, ki, max_torque = fv[F_SP_OPT], fv[F_SP_OPT + 1], fv[F_SP_OPT + 2]
+    error = reference - speed
+    torque = kv * error + fv[F_SP]
+    saturated = abs(torque) >= max_torque and torque * error > 0
+    if not saturated:
+        fv[F_SP] = _pmin(_pmax(fv[F_SP] + ki * error * dt, -max_torque), max_torque)
+    if speed < fv[F_SP_OPT + 3] * reference:
+        if fv[F_SP + 2] == 0.0:
+            fv[F_SP + 2] = 1.0
+            fv[F_SP + 3] = time
+        if time - fv[F_SP + 3] >= fv[F_SP_OPT + 4]:
+            fv[F_SP + 1] = 1.0
+            return 0.0, True
+    else:
+        fv[F_SP + 2] = 0.0
+        fv[F_SP + 3] = 0.0
+    return _pmin(_pmax(reference + fv[F_SP] / kv, 0.0), fv[F_SP_OPT + 5]), False
+
+
+def _tick(material: np.ndarray, cut: np.ndarray, removed_at: np.ndarray, recent: np.ndarray, fv: np.ndarray,
+          iv: np.ndarray, acc: np.ndarray, reference: float, time: float, dt: float) -> int:
+    """All of ``FoamCutter.step`` and ``CuttingObserver``'s sums in one call: the spindle loop
+    (``_spindle``, set-point written to ``ctrl``), ``_step``, the removed volume, and the
+    CutState added to ``acc`` (``N_A`` slots, as the observer adds it: in the same order).
+
+    Why: the hook runs every physics step (12,834 per default run) and its Python around
+    ``_step`` (the PI loop, CutState, the observer's tuple add) cost more than the kernel.
+    Returns 0, or ``TICK_STALL`` (a stall tripped: the caller appends the event, the speed
+    is ``fv[F_OMEGA]``) or/and ``TICK_PYTHON`` (``_step`` declined: the spindle ran, the
+    step and the sums are the caller's, on the Python path)."""
+    omega = _carray(_f64(iv[I_QVEL]), 1)[0]
+    ctrl, tripped = _spindle(fv, reference, omega, time, dt)
+    _carray(_f64(iv[I_CTRL]), 1)[0] = ctrl
+    flags = TICK_STALL if tripped else 0
+    fv[F_DT] = dt
+    fv[F_OMEGA] = omega
+    fv[F_TIME] = time
+    fv[F_STALLED] = fv[F_SP + 1]
+    outcome, n_inside = _step(material, cut, removed_at, recent, fv, iv)
+    fv[F_OUTCOME] = outcome
+    if outcome == STEP_PYTHON:
+        return flags | TICK_PYTHON
+    fv[F_UNBLOCK] = 1.0
+    fv[F_LAZY] = 1.0
+    active = False
+    if n_inside:
+        before = fv[F_REMOVED]
+        fv[F_REMOVED] = before + n_inside * fv[F_VOXEL]
+        fv[F_DIRTY] = 1.0
+        active = fv[F_REMOVED] > before
+    if fv[F_KIND] != 0.0:  # (kind 0 is the all-zero state: the observer skips it)
+        acc[0] += fv[F_OUT]
+        acc[1] += fv[F_OUT + 1]
+        acc[2] += 0.0
+        acc[3] += fv[F_OUT + 2]  # feed force
+        acc[4] += fv[F_OUT + 3]  # normal force
+        acc[5] += fv[F_OUT + 4]  # torque
+        acc[6] += fv[F_OUT + 6]  # power (the observer's order: power before mrr)
+        acc[7] += fv[F_OUT + 5]  # mrr
+        acc[8] += fv[F_OUT + 7]  # depth
+        acc[9] += fv[F_OUT + 8]  # chip
+        if active:
+            acc[A_ACTIVE] = 1.0
+    acc[A_STEPS] += 1.0
+    return flags
+
+
 def _implicit_feed(fv: np.ndarray, iv: np.ndarray, nv: int, vx: float, vy: float, ex: float, ey: float, a: float,
                    b: float, dt: float, x: float, y: float) -> float:
     """``FoamCutter._implicit_feed``: the end-of-step feed speed, >= 0."""
@@ -568,14 +668,14 @@ def mujoco_functions() -> tuple[int, int]:
 
 
 def kernels() -> dict[str, Any]:
-    """The compiled kernels ``engage``, ``remove``, ``held_anchored``, ``free_loose`` and
-    ``columns_with_material``
+    """The compiled kernels ``engage``, ``remove``, ``held_anchored``, ``free_loose``,
+    ``columns_with_material``, ``step`` and ``tick``
     (compiled, or loaded from numba's cache, on first use)."""
     if not _KERNELS:
         _bind_intrinsics()
         jit_in_place(globals(), ("_pmax", "_pmin", "_two_product", "_hypot", "_index_range", "_block_sum", "_pairwise_sum", "_inside", "_engage", "_remove",
                                  "_push", "_flood", "_held_anchored", "_free_loose", "_columns_with_material",
-                                 "_implicit_feed", "_step"))
+                                 "_implicit_feed", "_step", "_spindle", "_tick"))
         _KERNELS.update(engage=_engage, remove=_remove, held_anchored=_held_anchored, free_loose=_free_loose,
-                        columns_with_material=_columns_with_material, step=_step, hypot=_hypot)
+                        columns_with_material=_columns_with_material, step=_step, hypot=_hypot, tick=_tick)
     return _KERNELS

@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
 from dm_control import mjcf
 
 from ..configio import ConfigError, require_positive
@@ -324,10 +325,37 @@ class SpindleLoop:
     """
 
     options: ToolOptions
-    integral: float = 0.0  # N·m, the I term's torque
-    stalled: bool = False
-    low_since: float | None = None
     events: list[tuple[float, str, float]] = field(default_factory=list)
+    # (integral, stalled, low_since set, low_since) in one float64 array, read through the
+    # properties below: ``FoamCutter`` makes it a view of its fused step's slots
+    # (``cutting_kernels.F_SP``), so the compiled spindle loop and this object share one state.
+    state: np.ndarray = field(default_factory=lambda: np.zeros(4), repr=False, compare=False)
+
+    @property
+    def integral(self) -> float:
+        """N·m, the I term's torque."""
+        return self.state.item(0)
+
+    @integral.setter
+    def integral(self, value: float) -> None:
+        self.state[0] = value
+
+    @property
+    def stalled(self) -> bool:
+        return self.state.item(1) != 0.0
+
+    @stalled.setter
+    def stalled(self, value: bool) -> None:
+        self.state[1] = 1.0 if value else 0.0
+
+    @property
+    def low_since(self) -> float | None:
+        """When the speed last fell below the stall fraction (None: it is not below)."""
+        return self.state.item(3) if self.state.item(2) != 0.0 else None
+
+    @low_since.setter
+    def low_since(self, value: float | None) -> None:
+        self.state[2], self.state[3] = (0.0, 0.0) if value is None else (1.0, value)
 
     def reset(self) -> None:
         self.integral, self.stalled, self.low_since = 0.0, False, None
