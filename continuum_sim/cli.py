@@ -90,10 +90,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     prepare_run_folder(out, overwrite=args.overwrite)
     out = check_output_dir(args.out)
     mark_running(out)
-    from .model.warm import start_background_warmup
     from .scenario.runner import SimulationDiverged, run_scenario
-
-    start_background_warmup()  # a cold numba cache: the callback's kernels compile on the idle core meanwhile
 
     try:
         metrics = run_scenario(config, out, video=args.video, progress=not args.quiet, controller=controller)
