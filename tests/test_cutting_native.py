@@ -237,3 +237,22 @@ def test_native_connectivity_on_a_cut_plate():
     assert np.array_equal(freed, material & ~_labelled(material, held)[1])
     material[:, 10, :] = False  # no material under the jaws
     assert k["held_anchored"](material, flat) == _labelled(material, held)[0] == -1
+
+
+def test_without_mujocos_library_by_path_the_cutter_takes_its_python_step(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The fused step calls mj_jac/mj_solveM by address; where the library is not found next to
+    the bindings (``jit.mujoco_symbols`` None) the cutter runs its Python step, the same numbers."""
+    from continuum_sim.model import jit
+
+    assert ck.mujoco_functions() is not None  # here it is found
+    monkeypatch.setattr(jit, "mujoco_symbols", lambda *names: None)
+    assert ck.mujoco_functions() is None
+    model, data, cutter = _rig(True)
+    assert cutter._native_tick is None and cutter._fv is None
+    reference_model, reference_data, reference = _rig(False)
+    for _ in range(50):
+        for m, d, c in ((model, data, cutter), (reference_model, reference_data, reference)):
+            c.step(SPEED)
+            mujoco.mj_step(m, d)
+    np.testing.assert_array_equal(data.qvel, reference_data.qvel)
+    assert cutter.spindle.integral == reference.spindle.integral

@@ -89,3 +89,25 @@ def test_a_replaced_apply_falls_back_to_the_python_callback() -> None:
     assert mujoco.get_mjcb_passive() is fr._COMPILED[0]  # only table-ready hooks left
     cp.release_data(data)
     assert (mujoco.get_mjcb_passive() is None) == (not fr._REGISTRY)  # ours gone when nothing is registered
+
+
+def test_without_mujocos_library_by_path_the_python_callback_runs(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The compiled callback calls mj_fwdActuation by address; where the library is not found
+    (``jit.mujoco_symbols`` None) building it fails and the process keeps the Python callback."""
+    from continuum_sim.model import jit
+    from continuum_sim.model import native_callback as nc
+
+    monkeypatch.setattr(jit, "mujoco_symbols", lambda *names: None)
+    monkeypatch.setattr(fr, "_COMPILED", [])
+    monkeypatch.setattr(fr, "_UNAVAILABLE", [])
+    monkeypatch.setattr(nc, "_BUILT", [])
+    native, _ = cp.compile_native(_arm_root("hinge_pair"))
+    data = cp.make_data(native)
+    assert fr._UNAVAILABLE and mujoco.get_mjcb_passive() is fr._C_CALLBACK[0]
+    handle = fr.install_cable_friction(native, data, fr.CableFrictionConfig(),
+                                       kernel=cp.native_cables(native).data_kernel(data))
+    _drive(native, data, 20, seed=1)
+    handle.check()
+    assert np.all(np.isfinite(data.qpos)) and np.any(data.ten_length)  # the cables were evaluated
+    handle.uninstall()
+    cp.release_data(data)

@@ -503,6 +503,9 @@ class FoamCutter:
         float and one int array, the buffers it reads and writes by address (MuJoCo's live as
         long as ``data``; the others are this cutter's and are kept). The spindle loop's state
         becomes a view of its slots (``SpindleLoop.state``)."""
+        functions = ck.mujoco_functions()
+        if functions is None:
+            return  # MuJoCo's library not found by path: the Python step (the same numbers)
         model, grid, foam, tools = self.model, self.grid, self.foam, self.tools
         fv = np.zeros(ck.N_F)
         fv[ck.F_SP_OPT:ck.F_SP_OPT + 6] = (tools.spindle_kv, tools.spindle_ki, tools.spindle_max_torque,
@@ -518,7 +521,7 @@ class FoamCutter:
         self._consts = [np.ascontiguousarray(a, dtype=float) for a in (
             *grid.centres, self._edges, grid.lo, grid.h, self._cos_t, self._sin_t, self._i_cc, self._i_cs, self._i_c)]
         iv = np.zeros(ck.N_I, np.int64)
-        jac, solve = ck.mujoco_functions()
+        jac, solve = functions
         iv[ck.I_BODY], iv[ck.I_NV], iv[ck.I_M], iv[ck.I_D] = self.body, model.nv, model._address, data._address
         iv[ck.I_JAC], iv[ck.I_SOLVE], iv[ck.I_NPROBE], iv[ck.I_TWO] = jac, solve, len(self._theta), 2
         views = (self._xpos_row, self._xmat_row, self._cvel_row, self._com_row, self._xipos_row, self._xfrc_row,

@@ -654,17 +654,13 @@ def _bind_intrinsics() -> None:
     g.update(_carray=carray, _f64=intrinsic(f64), _call_jac=intrinsic(call_jac), _call_solve=intrinsic(call_solve))
 
 
-def mujoco_functions() -> tuple[int, int]:
-    """The addresses of ``mj_jac`` and ``mj_solveM`` in the loaded MuJoCo library."""
-    import ctypes
-    import glob
-    import os
+def mujoco_functions() -> tuple[int, int] | None:
+    """The addresses of ``mj_jac`` and ``mj_solveM`` in the loaded MuJoCo library (None: not
+    found; the cutter then runs its Python step)."""
+    from .jit import mujoco_symbols
 
-    import mujoco
-
-    lib = ctypes.CDLL(sorted(glob.glob(os.path.join(os.path.dirname(mujoco.__file__), "libmujoco.so*")))[0])
-    return (int(ctypes.cast(lib.mj_jac, ctypes.c_void_p).value or 0),
-            int(ctypes.cast(lib.mj_solveM, ctypes.c_void_p).value or 0))
+    found = mujoco_symbols("mj_jac", "mj_solveM")
+    return None if found is None else (found[0], found[1])
 
 
 def kernels() -> dict[str, Any]:

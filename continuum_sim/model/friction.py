@@ -898,7 +898,7 @@ def sync_native_models() -> None:
 
 def _wanted_callback() -> Any:
     """The compiled callback, unless the fallback is asked for or some registration needs Python."""
-    if not COMPILED_CALLBACK or _UNFIT:
+    if not COMPILED_CALLBACK or _UNFIT or _UNAVAILABLE:
         return _C_CALLBACK[0]
     nc = _table()
     if len(_native_models()) > nc.MAX_MODELS:
@@ -906,10 +906,17 @@ def _wanted_callback() -> Any:
     if not _COMPILED:
         from .jit import sigint_deferred
 
-        with sigint_deferred():
-            _COMPILED.append(nc.build())
+        try:
+            with sigint_deferred():
+                _COMPILED.append(nc.build())
+        except OSError:  # MuJoCo's library not found by path: the Python callback (the same numbers)
+            _UNAVAILABLE.append(True)
+            return _C_CALLBACK[0]
         sync_native_models()
     return _COMPILED[0]
+
+
+_UNAVAILABLE: list[bool] = []  # the compiled callback could not be built in this process
 
 
 _COMPILED: list[Any] = []

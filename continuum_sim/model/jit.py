@@ -21,6 +21,30 @@ def jit_in_place(namespace: dict[str, Any], names: tuple[str, ...]) -> None:
         namespace[name] = jit(namespace[name])
 
 
+def mujoco_symbols(*names: str) -> tuple[int, ...] | None:
+    """The C addresses of MuJoCo functions ``names`` in the library the bindings loaded (the
+    compiled kernels call them directly); None where the library or a symbol is not found,
+    and the caller takes its Python path."""
+    import ctypes
+    import glob
+    import os
+
+    import mujoco
+
+    here = os.path.dirname(mujoco.__file__)
+    libraries = sorted(p for pattern in ("libmujoco*.so*", "libmujoco*.dylib", "mujoco*.dll")
+                       for p in glob.glob(os.path.join(here, pattern)))
+    for path in libraries:
+        try:
+            lib = ctypes.CDLL(path)
+            addresses = tuple(int(ctypes.cast(getattr(lib, name), ctypes.c_void_p).value or 0) for name in names)
+        except (OSError, AttributeError):
+            continue
+        if all(addresses):
+            return addresses
+    return None
+
+
 @contextmanager
 def sigint_deferred() -> Iterator[None]:
     """While the block runs (a numba compile, or a load from its cache), Ctrl-C only records

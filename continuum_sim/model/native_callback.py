@@ -28,7 +28,6 @@ argument types (C-contiguous arrays), so results are bit-identical.
 # ruff: noqa: ARG001
 from __future__ import annotations
 
-import ctypes
 import glob
 import hashlib
 import inspect
@@ -365,13 +364,13 @@ def _cache_ok() -> bool:
 
 
 def _fwd_actuation_address() -> int:
-    import mujoco
+    """``mj_fwdActuation``'s C address (the callback calls it before friction)."""
+    from .jit import mujoco_symbols
 
-    libs = sorted(glob.glob(os.path.join(os.path.dirname(mujoco.__file__), "libmujoco.so*")))
-    if not libs:
-        raise RuntimeError("libmujoco not found next to the mujoco bindings")
-    lib = ctypes.CDLL(libs[0])
-    return int(ctypes.cast(lib.mj_fwdActuation, ctypes.c_void_p).value or 0)
+    found = mujoco_symbols("mj_fwdActuation")
+    if found is None:
+        raise OSError("libmujoco not found next to the mujoco bindings")
+    return found[0]
 
 
 def build() -> Any:
