@@ -664,12 +664,12 @@ def _compiled_kernels() -> dict[str, Any]:
         k["held_anchored"](material, np.array([1], np.int64))
         k["free_loose"](material)
         k["columns_with_material"](material, np.array([1], np.int64))
-        # The fused step, far from any material (an empty box): it only writes the scratch buffers.
+        # The fused step (``_step`` inside ``_tick``), far from any material (an empty box): it only
+        # writes the scratch buffers.
         fv, iv = np.zeros(ck.N_F), np.zeros(ck.N_I, np.int64)
         fv[ck.F_BOX:ck.F_BOX + 3], fv[ck.F_DT] = 1.0, 1.0
         scratch = np.zeros(32)
         iv[ck.I_XPOS:ck.I_CTRL + 1] = scratch.ctypes.data
-        k["step"](material, np.zeros_like(material), np.full((2, 2), np.nan, np.float32), recent, fv, iv)
         k["tick"](material, np.zeros_like(material), np.full((2, 2), np.nan, np.float32), recent, fv, iv,
                   np.zeros(ck.N_A), 0.0, 0.0, 1.0)
     return k

@@ -665,7 +665,7 @@ def mujoco_functions() -> tuple[int, int] | None:
 
 def kernels() -> dict[str, Any]:
     """The compiled kernels ``engage``, ``remove``, ``held_anchored``, ``free_loose``,
-    ``columns_with_material``, ``step`` and ``tick``
+    ``columns_with_material``, ``hypot`` and ``tick`` (``_step`` runs inside ``tick``)
     (compiled, or loaded from numba's cache, on first use)."""
     if not _KERNELS:
         _bind_intrinsics()
@@ -673,5 +673,5 @@ def kernels() -> dict[str, Any]:
                                  "_push", "_flood", "_held_anchored", "_free_loose", "_columns_with_material",
                                  "_implicit_feed", "_step", "_spindle", "_tick"))
         _KERNELS.update(engage=_engage, remove=_remove, held_anchored=_held_anchored, free_loose=_free_loose,
-                        columns_with_material=_columns_with_material, step=_step, hypot=_hypot, tick=_tick)
+                        columns_with_material=_columns_with_material, hypot=_hypot, tick=_tick)
     return _KERNELS
