@@ -616,7 +616,9 @@ def _metrics(geometry, layout, cfg, cat, q_left, q_right, tcp_left, tcp_right, w
     # Deviation of the planned TCP (eq. 12 interpolation between solved points) from the ideal kerf line.
     gp = grinder_poses(layout, cfg)
     line = np.array([gp[k][:3, 3] for k in ("cut_start", "front_edge", "inner_corner", "side_edge")])
-    dev = _polyline_distance(tcp_left[cutting, :3, 3], line) if cutting.any() else np.zeros(0)
+    from .scenario.metrics import polyline_distance
+
+    dev = polyline_distance(tcp_left[cutting, :3, 3], line) if cutting.any() else np.zeros(0)
     axis_err = np.degrees(np.arccos(np.clip(tcp_left[cutting, 2, 2], -1.0, 1.0))) if cutting.any() else np.zeros(0)
     steps = {}
     for arm, q in (("left", q_left), ("right", q_right)):
@@ -648,15 +650,6 @@ def _bent_dphi(q: Array, free_below: float) -> float:
     bent = (th[1:] >= free_below) & (th[:-1] >= free_below)
     d = np.abs(np.diff(ph, axis=0))
     return float(d[bent].max()) if bent.any() else 0.0
-
-
-def _polyline_distance(points: Array, line: Array) -> Array:
-    best = np.full(len(points), np.inf)
-    for a, b in zip(line[:-1], line[1:]):
-        ab = b - a
-        f = np.clip(((points - a) @ ab) / max(ab @ ab, 1e-300), 0.0, 1.0)
-        best = np.minimum(best, np.linalg.norm(points - (a + f[:, None] * ab), axis=1))
-    return best
 
 
 # ------------------------------------------------------------------------ outputs
