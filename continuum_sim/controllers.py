@@ -159,7 +159,7 @@ class PlanTrackingController:
 
     def reset(self, context: ControlContext) -> None:
         from .control import ArmController
-        from .model.motors import cable_stiffness
+        from .model.cable_elasticity import cable_stiffness
 
         cfg = context.config
         control = cfg.control if self.mode is None else dataclasses.replace(cfg.control, mode=self.mode)

@@ -134,7 +134,7 @@ def _arm_modes_cached(
 
     from .model import names
     from .model.arm import build_single_arm_model
-    from .model.motors import cable_stiffness
+    from .model.cable_elasticity import cable_stiffness
     from .model.options import model_geometry
 
     root = build_single_arm_model(geometry, options, gravity=False)
@@ -210,7 +210,7 @@ def plant_gain(
     tool_length: float = 0.0,
 ) -> PlantGain:
     """G = min(ω_c, mode_fraction·ω₁)·R⁻¹ for one arm (see the module docstring)."""
-    from .model.motors import cable_stiffness
+    from .model.cable_elasticity import cable_stiffness
 
     k = cable_stiffness(geometry, options) if cable_k is None else np.asarray(cable_k, dtype=float)
     scale = options.stiffness_scale

@@ -22,10 +22,11 @@ from model_helpers import carry_with_mocap, compile_root, rigid_arm
 from continuum_sim import ArmGeometry
 from continuum_sim.configio import ConfigError
 from continuum_sim.layout import TaskLayout
-from continuum_sim.model.cutting import FoamOptions, foam_cutter, kerf_profile
 from continuum_sim.model.options import ModelOptions
 from continuum_sim.model.scene import SAMPLE_WELD, SceneOptions, build_scene
-from continuum_sim.model.tools import SpindleLoop, ToolOptions
+from continuum_sim.model.scene_options import FoamOptions, ToolOptions
+from continuum_sim.plant.cut_record import kerf_profile
+from continuum_sim.plant.cutter import foam_cutter
 
 LAYOUT = TaskLayout()
 PLATE = LAYOUT.plate
@@ -35,7 +36,7 @@ SPEED = ToolOptions().spindle_speed
 
 
 def make(scene: SceneOptions | None = None):
-    """(model, data, cutter) of a new mocap scene."""
+    """(model, data, cutter) of a new mocap scene (the cutter's spindle drive: ``cutter.spindle``)."""
     scene = SceneOptions() if scene is None else scene
     root = build_scene(GEOMETRY, LAYOUT, ModelOptions(), scene, arm_builder=rigid_arm)
     carry_with_mocap(root, "left", GEOMETRY.length)
@@ -52,9 +53,18 @@ def cut_path() -> np.ndarray:
     return np.vstack([kerf[0] - [0, 0.012, 0], kerf, kerf[-1] + [0.012, 0, 0]])
 
 
+def step(model, data, cutter, reference):
+    """One physics step as the run's observer takes it: the spindle drive's loop, the cutter, MuJoCo."""
+    cutter.spindle.step(data, reference, model.opt.timestep)
+    state = cutter.step()
+    mujoco.mj_step(model, data)
+    cutter.after_step()
+    return state
+
+
 def drive(model, data, cutter, points, feed, spindle=SPEED, stop=None, settle=0.0, start_delay=0.5, start=0.0, jitter=None):
     """Move the TCP along ``points`` from arc length ``start`` to ``stop`` at ``feed`` (after ``start_delay`` of spin-up), one
-    ``cutter.step`` before every ``mj_step``; returns per-step rows
+    ``step``; returns per-step rows
     (t, tcp xy, feed force, normal force, torque, spindle speed, removed volume, detached)."""
     cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
     stop = cum[-1] if stop is None else stop
@@ -77,9 +87,7 @@ def drive(model, data, cutter, points, feed, spindle=SPEED, stop=None, settle=0.
         if jitter is not None:  # (amplitude, frequency): back and forth along the path
             s += jitter[0] * math.sin(2 * math.pi * jitter[1] * data.time)
         data.mocap_pos[mocap] = at(s) - OFFSET
-        state = cutter.step(spindle)
-        mujoco.mj_step(model, data)
-        cutter.after_step()
+        state = step(model, data, cutter, spindle)
         rows.append((data.time, *data.site_xpos[tcp][:2], state.feed_force, state.normal_force, state.torque,
                      cutter.spindle_speed, cutter.removed_volume, cutter.detached, state.power))
     return np.array(rows)
@@ -112,6 +120,7 @@ def run_straight(scene, feed, spindle=SPEED, depth=None, y_len=0.020):
     model, data, cutter = scene
     mujoco.mj_resetData(model, data)
     cutter.reset()
+    cutter.spindle.reset()
     points = straight(y_len)
     if depth is not None:  # raise the cutter so its tip is ``depth`` into the plate from below
         points[:, 2] = PLATE.top_z - PLATE.thickness + depth
@@ -163,7 +172,7 @@ def test_spindle_slows_under_load_and_its_integral_restores_speed():
     load = 0.5 * ToolOptions().spindle_max_torque
     speeds = []
     while data.time < 3.0:
-        data.ctrl[cutter.spindle_actuator] = cutter.spindle.control(SPEED, data.qvel[dof], data.time, model.opt.timestep)
+        data.ctrl[cutter.spindle.actuator] = cutter.spindle.control(SPEED, data.qvel[dof], data.time, model.opt.timestep)
         data.qfrc_applied[dof] = -load if data.time > 1.0 else 0.0
         mujoco.mj_step(model, data)
         speeds.append((data.time, data.qvel[dof]))
@@ -234,6 +243,7 @@ def test_cutting_energy_equals_u_times_the_volume_removed(scene):
     model, data, cutter = scene
     mujoco.mj_resetData(model, data)
     cutter.reset()
+    cutter.spindle.reset()
     rows = drive(model, data, cutter, straight(0.02), feed=0.01, jitter=(0.0003, 8.0))
     energy = float(np.sum(rows[:, 9]) * model.opt.timestep)
     assert energy == pytest.approx(cutter.u * cutter.removed_volume, rel=0.08)
@@ -262,7 +272,8 @@ def test_foam_options_validate():
 
 
 def test_spindle_loop_trips_and_rearms():
-    loop = SpindleLoop(ToolOptions())
+    _, _, cutter = make()
+    loop = cutter.spindle
     t, dt = 0.0, 0.004
     while t < ToolOptions().spindle_stall_time + 0.05:
         loop.control(SPEED, 0.0, t, dt)  # commanded, not turning

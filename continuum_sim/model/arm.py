@@ -7,7 +7,7 @@ the last disk of its section, so the tendon length is exactly SPEC §2's cable l
 (the polyline of the closed-loop vectors l). Each cable is pulled by one tension-only
 position actuator, force range [−Fmax, 0]: with ``cable_model = "elastic"`` its gain is
 the cable's own axial stiffness EA/L (L = lead + in-arm path; ``motors.cable_stiffness``)
-and its control the motor position (``motors.MotorBank``); with ``"lumped"`` it is the
+and its control the motor position (``plant.drive.MotorBank``); with ``"lumped"`` it is the
 legacy P-only servo of gain ``cable_kp`` standing for motor and cable together.
 """
 
@@ -21,7 +21,7 @@ from ..configio import ConfigError
 from ..geometry import ArmGeometry
 from ..kinematics import straight_cable_lengths
 from .backbone import LinkSpec, build_backbone
-from .motors import cable_stiffness, cable_velocity_gain
+from .cable_elasticity import cable_stiffness, cable_velocity_gain
 from .options import ModelOptions, model_geometry
 from .stiffness import joint_stiffnesses
 

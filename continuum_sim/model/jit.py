@@ -1,4 +1,4 @@
-"""numba helpers shared by the compiled per-step kernels (``friction``, ``cutting_kernels``)."""
+"""numba helpers shared by the compiled per-step kernels (``friction``, ``plant``)."""
 
 from __future__ import annotations
 

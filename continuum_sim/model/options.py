@@ -31,7 +31,7 @@ class ModelOptions:
     # --- Transmission (docs/plant.md): rope, motors. ---
     # "elastic": each cable is its own spring EA/L (rope modulus × area over its routed
     # length: lead + in-arm path), pulled by a motor whose position (a PI encoder loop
-    # with speed and force limits, continuum_sim.model.motors) is the actuator's control;
+    # with speed and force limits, continuum_sim.plant.drive) is the actuator's control;
     # "lumped": the legacy single P-only servo of gain cable_kp standing for motor and cable.
     cable_model: Literal["elastic", "lumped"] = "elastic"
     rope_diameter: float = 1.0e-3  # m, nominal diameter of the steel wire rope (*assumed*, docs/plant.md)
@@ -48,7 +48,7 @@ class ModelOptions:
     # spring is unstable at the 4 ms step once a grasp pins the tip (docs/plant.md, "Tension chatter").
     cable_implicit_spring: bool = True
     # Divide `timestep` by the smallest whole n that keeps the stiffest cable's and the stiffest
-    # flexure joint's k·h² within motors.CABLE_STEP_LIMIT / JOINT_STEP_LIMIT (what the default
+    # flexure joint's k·h² within cable_elasticity.CABLE_STEP_LIMIT / JOINT_STEP_LIMIT (what the default
     # task was verified to run at). Stiff cables (≥ 5e5 N/m at 4 ms) and hinges above ×8
     # diverged at 4 ms; a whole n keeps every control tick a whole number of steps.
     # False: `timestep` as given.

@@ -1,7 +1,7 @@
 """Option dataclasses of the scene and its tools: light (no MuJoCo, no dm_control, no scipy).
 
 ``scenario.config`` loads these, so reading a configuration imports no simulator. The
-builders and the runtime that use them live in ``tools``, ``cutting`` and ``scene``, which
+builders that use them live in ``tools`` and ``scene`` (the runtime in ``plant``), which
 re-export them.
 """
 
@@ -140,12 +140,9 @@ class FoamOptions:
     min_cutting_speed: float = 50.0  # rad/s: a slower spindle rubs instead of cutting
     block_stiffness: float = 2000.0  # N/m, uncut foam against a cutter that does not cut (assumed, numerically stable at 4 ms)
     block_damping: float = 10.0  # N·s/m
-    # s between connectivity checks (only after material was removed): ~0.1 ms each at 1 mm compiled, ~3 ms with scipy.ndimage.label (native false)
+    # s between connectivity checks (only after material was removed): ~0.1 ms each at 1 mm (plant/foam.py's flood fill)
     connectivity_period: float = 0.1
     grip_radius: float = 0.006  # m: the material under the jaws, around the grasp point
-    # The voxel work of each physics step in compiled numba kernels (model/cutting_kernels.py);
-    # false: the numpy path. Both give bit-identical results (tests/test_cutting_native.py).
-    native: bool = True
 
     def __post_init__(self) -> None:
         require_positive("specific_energy", self.specific_energy)
@@ -160,8 +157,6 @@ class FoamOptions:
         require_range("block_damping", self.block_damping, 0.0, 1.0e4, low_inclusive=True)
         require_range("connectivity_period", self.connectivity_period, 0.0, 10.0, low_inclusive=True)
         require_range("grip_radius", self.grip_radius, 0.0, 0.1)
-        if not isinstance(self.native, bool):
-            raise ConfigError("native", f"must be true or false (got {self.native!r})")
 
     def cutting_energy(self, density: float) -> float:
         """u (J/m³) of a foam of ``density`` (kg/m³)."""

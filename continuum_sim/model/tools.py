@@ -8,10 +8,10 @@ which is where the arm builder puts its ``<arm>/tcp`` site, so planner and model
 Grinder: a housing welded to the last disk and a spindle body on a hinge about the tool
 z axis (the spindle motor sits in the pack and drives a flexible shaft, so only a small
 mass rides on the arm). Its speed loop is a PI with a torque limit: the P part is a
-MuJoCo velocity actuator with a force range, the I part ``SpindleLoop`` (which also
+MuJoCo velocity actuator with a force range, the I part ``plant.spindle.SpindleDrive`` (which also
 reports a stall). The cutting geom ``cutter`` is a cylinder of the kerf width whose tip
 face centre is the TCP; it belongs to the housing body (the spinning ``cutter_visual``
-of the same shape is what one sees) and collides with nothing: ``cutting.FoamCutter``
+of the same shape is what one sees) and collides with nothing: ``plant.cutter.FoamCutter``
 intersects it with the foam's voxels and applies the cutting force.
 
 Gripper: a palm and two jaws on slide joints along the tool x axis (q = 0 open, q > 0
@@ -25,9 +25,7 @@ actuator is a tension-only position loop (force range [−F, 0]) like the arm ca
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
-import numpy as np
 from dm_control import mjcf
 
 from ..configio import ConfigError, require_positive
@@ -151,7 +149,7 @@ def build_grinder(
         group=1,
     )
     # The cutting geom: where the cutter is, not a contact. It sits on the housing (the cutting
-    # force, applied by ``cutting.FoamCutter`` to the housing body, loads the arm through the
+    # force, applied by ``plant.cutter.FoamCutter`` to the housing body, loads the arm through the
     # bearings) and collides with nothing: the foam it meets is the cutter's voxel material,
     # not MuJoCo geoms. Massless, hidden (group 3) under the spinning visual cutter.
     housing.add(
@@ -169,7 +167,7 @@ def build_grinder(
     spindle.add("site", name="tip", pos=(0, 0, length - housing_top), size=(0.0015,), rgba=(1, 0, 0, 1))
     # The proportional part of the speed loop, integrated implicitly by MuJoCo (an explicit
     # P term on the 1e-5 kg·m² rotor would be unstable at the scenario's 4 ms step); the
-    # integral part is added to the set-point by ``SpindleLoop``; the torque limit is the
+    # integral part is added to the set-point by ``plant.spindle.SpindleDrive``; the torque limit is the
     # actuator's force range.
     root.actuator.add(
         "velocity",
@@ -310,76 +308,3 @@ def build_tool(
     if tool == "none":
         return None
     raise ConfigError("tool", f"must be one of 'grinder', 'gripper', 'none' (got {tool!r})")
-
-
-@dataclass
-class SpindleLoop:
-    """The integral half of the spindle's PI speed loop, its anti-windup, and stall detection.
-
-    MuJoCo's velocity actuator supplies ``kv·(ctrl − ω)`` clipped to ±``max_torque``; this
-    adds ``∫ki·e dt`` to the torque by raising the set-point (``ctrl = ω_ref + I/kv``), and
-    stops integrating while the drive sits at its torque limit. A stall is a commanded
-    spindle turning slower than ``stall_fraction·ω_ref`` for ``stall_time``: the drive then
-    trips (ctrl 0, like a motor controller's stall protection) until the command returns to
-    zero. ``events`` lists ``(time, "stall", speed)``.
-    """
-
-    options: ToolOptions
-    events: list[tuple[float, str, float]] = field(default_factory=list)
-    # (integral, stalled, low_since set, low_since) in one float64 array, read through the
-    # properties below: ``FoamCutter`` makes it a view of its fused step's slots
-    # (``cutting_kernels.F_SP``), so the compiled spindle loop and this object share one state.
-    state: np.ndarray = field(default_factory=lambda: np.zeros(4), repr=False, compare=False)
-
-    @property
-    def integral(self) -> float:
-        """N·m, the I term's torque."""
-        return self.state.item(0)
-
-    @integral.setter
-    def integral(self, value: float) -> None:
-        self.state[0] = value
-
-    @property
-    def stalled(self) -> bool:
-        return self.state.item(1) != 0.0
-
-    @stalled.setter
-    def stalled(self, value: bool) -> None:
-        self.state[1] = 1.0 if value else 0.0
-
-    @property
-    def low_since(self) -> float | None:
-        """When the speed last fell below the stall fraction (None: it is not below)."""
-        return self.state.item(3) if self.state.item(2) != 0.0 else None
-
-    @low_since.setter
-    def low_since(self, value: float | None) -> None:
-        self.state[2], self.state[3] = (0.0, 0.0) if value is None else (1.0, value)
-
-    def reset(self) -> None:
-        self.integral, self.stalled, self.low_since = 0.0, False, None
-        self.events.clear()
-
-    def control(self, reference: float, speed: float, time: float, dt: float) -> float:
-        """The actuator set-point for the next step from the commanded and measured speed."""
-        o = self.options
-        if reference <= 0.0:
-            self.integral, self.stalled, self.low_since = 0.0, False, None
-            return 0.0
-        if self.stalled:
-            return 0.0
-        error = reference - speed
-        torque = o.spindle_kv * error + self.integral
-        saturated = abs(torque) >= o.spindle_max_torque and torque * error > 0
-        if not saturated:
-            self.integral = min(max(self.integral + o.spindle_ki * error * dt, -o.spindle_max_torque), o.spindle_max_torque)
-        if speed < o.spindle_stall_fraction * reference:
-            self.low_since = time if self.low_since is None else self.low_since
-            if time - self.low_since >= o.spindle_stall_time:
-                self.stalled = True
-                self.events.append((float(time), "stall", float(speed)))
-                return 0.0
-        else:
-            self.low_since = None
-        return min(max(reference + self.integral / o.spindle_kv, 0.0), o.spindle_max_speed)

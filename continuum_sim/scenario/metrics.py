@@ -315,7 +315,7 @@ def compute_metrics(trajectory: Trajectory, plan: TaskPlan, config: ScenarioConf
     out["cable_friction"] = friction_metrics(tr, config)
     out["min_cable_tension_n"] = float(tension.min())
     if tr.cutting:
-        from ..model.cutting import CuttingRecord, cutting_metrics
+        from ..plant.cut_record import CuttingRecord, cutting_metrics
 
         plate = config.layout.plate
         out["cutting"] = cutting_metrics(CuttingRecord.from_arrays(tr.cutting), plate.kerf_polyline(), plate.kerf_width)

@@ -27,7 +27,6 @@ from ..controllers import ControlContext, Controller, controller_spec, load_cont
 from ..limits import check_run_length, check_scenario
 from ..model.cable_path import release_data
 from ..model.handles import SceneHandles
-from ..model.motors import MotorDrive
 from ..model.options import model_geometry
 from ..model.state import set_arm_configuration
 from ..toolpath import TaskPlan, plan_task
@@ -135,14 +134,14 @@ def plan_extent(plan: TaskPlan, stages: tuple[str, ...] | None) -> tuple[tuple[s
 
 
 def with_stable_step(config: ScenarioConfig) -> ScenarioConfig:
-    """The configuration with ``model.timestep`` the step the run uses (``model.motors.stable_timestep``).
+    """The configuration with ``model.timestep`` the step the run uses (``model.cable_elasticity.stable_timestep``).
 
     Resolved once, before anything is planned or built, so the model, the limits, the motor
     loops and the saved ``config.toml`` all see the same step (re-resolving it is a no-op).
     """
     import dataclasses
 
-    from ..model.motors import stable_timestep
+    from ..model.cable_elasticity import stable_timestep
 
     h = stable_timestep(config.arm, config.model)  # the physical arm: the model geometry is derived inside
     if h == config.model.timestep:
@@ -192,6 +191,8 @@ def make_simulation(config: ScenarioConfig, plan: TaskPlan, model: mujoco.MjMode
                              control_every * model.opt.timestep)
     sim = Simulation(model, data, handles, plan, controller, context, control_every)
     # The motors between commands and cables (docs/plant.md): PI encoder loops, speed and force limits.
+    from ..plant.drive import MotorDrive  # (here: numba loads only once a run is built)
+
     sim.actuate = MotorDrive(model, handles, geometry, config.model, config.scene.tools)
     if config.simulation.tcp_noise_m > 0.0:
         sim.measure = NoisyMeasurement(config.simulation.tcp_noise_m, config.simulation.seed)
@@ -266,7 +267,8 @@ def write_run(out_dir: Path, trajectory: Trajectory, metrics: dict[str, Any], pl
     trajectory.save(out_dir / "trajectory.npz")
     plots.write_run_plots(out_dir / "plots", trajectory.series(), plan, config)
     if trajectory.cutting:
-        from ..model.cutting import CuttingRecord, write_cutting_plots
+        from ..plant.cut_record import CuttingRecord
+        from .cut_plots import write_cutting_plots
 
         plate = config.layout.plate
         write_cutting_plots(CuttingRecord.from_arrays(trajectory.cutting), trajectory.t, plate.kerf_polyline(),

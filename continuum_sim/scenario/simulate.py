@@ -276,11 +276,11 @@ def _health_code(number: np.ndarray, baseline: np.ndarray, qpos: np.ndarray, qve
 
 
 class CutterObserver(Observer):
-    """The foam cutter (``model.cutting.CuttingObserver``): cutting force and spindle loop before
+    """The foam cutter (``plant.cut_record.CuttingObserver``): spindle loop and cutting force before
     every physics step, connectivity after each tick, its own record every ``every`` ticks."""
 
     def __init__(self, sim: Simulation, every: int = 1) -> None:
-        from ..model.cutting import CuttingObserver
+        from ..plant.cut_record import CuttingObserver
 
         config = sim.context.config
         self.cutting = CuttingObserver(sim, config.layout, config.scene, every)

@@ -62,7 +62,7 @@ class Trajectory:
     failure: str | None  # why the simulation stopped early (divergence), None if it ran to the end
     wall_breakdown_s: dict[str, float]  # where the wall time went (machine-dependent)
     wall_seconds: float
-    # The cutter's record (model.cutting.CuttingRecord.arrays(): cut_* series, kerf_map, ...);
+    # The cutter's record (plant.cut_record.CuttingRecord.arrays(): cut_* series, kerf_map, ...);
     # empty for runs saved before the foam cutter.
     cutting: dict[str, np.ndarray] = field(default_factory=dict)
 
@@ -143,6 +143,6 @@ def _arm_series(data: dict[str, np.ndarray], arm: str, name: str) -> np.ndarray:
 
 def _cutting_arrays(data: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The cutter's record among the saved arrays (none in runs saved before the foam cutter)."""
-    from ..model.cutting import CUTTING_ARRAYS
+    from ..plant.cut_record import CUTTING_ARRAYS
 
     return {key: data[key] for key in CUTTING_ARRAYS if key in data}

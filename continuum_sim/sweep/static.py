@@ -34,7 +34,7 @@ from ..configio import to_dict
 from ..control import ArmController
 from ..model import names
 from ..model.arm import build_single_arm_model, section_links
-from ..model.motors import cable_stiffness
+from ..model.cable_elasticity import cable_stiffness
 from ..model.options import ModelOptions, model_geometry
 from ..model.state import set_arm_configuration
 from ..scenario.config import ScenarioConfig
@@ -63,8 +63,8 @@ UNUSED_BY_MODEL = ("control", "simulation", "layout")
 
 # --------------------------------------------------------------------------- models
 def model_options(config: ScenarioConfig, evaluation: Evaluation) -> ModelOptions:
-    """The variant's model options at its stable step (``model.motors.stable_timestep``)."""
-    from ..model.motors import stable_timestep
+    """The variant's model options at its stable step (``model.cable_elasticity.stable_timestep``)."""
+    from ..model.cable_elasticity import stable_timestep
 
     options = config.model
     if isinstance(evaluation, TipDeflection) and evaluation.cables == "free":

@@ -100,7 +100,7 @@ def cable_controls(config: ScenarioConfig, delta: Array) -> Array:
     reaching its set-point (the encoder loop's integral action removes the load droop),
     so the motor loop's own lag (≈ 3 Hz bandwidth, docs/plant.md) is not replayed.
     """
-    from ..model.motors import pretension_offsets
+    from ..model.cable_elasticity import pretension_offsets
 
     geometry = model_geometry(config.arm, config.model)
     straight = straight_cable_lengths(geometry)

@@ -1,0 +1,1 @@
+"""Runtime physics MuJoCo does not have: cable path and friction, motors and spindle drive, foam and cutter."""
