@@ -7,7 +7,7 @@ from continuum_sim import ArmGeometry, ConfigError, tool_centre_pose
 from continuum_sim.control import ArmController, ControlConfig
 from continuum_sim.glbackend import choose_gl_backend
 from continuum_sim.model.arm import build_single_arm_model
-from continuum_sim.model.motors import cable_stiffness
+from continuum_sim.model.cable_elasticity import cable_stiffness
 from continuum_sim.scenario.config import ScenarioConfig
 
 choose_gl_backend()

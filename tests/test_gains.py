@@ -11,7 +11,7 @@ from continuum_sim import gains
 from continuum_sim import kinematics as kin
 from continuum_sim.configio import ConfigError, from_dict
 from continuum_sim.control import ArmController, ControlConfig
-from continuum_sim.model.motors import cable_stiffness
+from continuum_sim.model.cable_elasticity import cable_stiffness
 from continuum_sim.model.options import model_geometry
 from continuum_sim.model.stiffness import joint_stiffness
 from continuum_sim.scenario.config import ScenarioConfig

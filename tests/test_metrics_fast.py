@@ -119,7 +119,7 @@ def test_cutting_record_rows_become_the_arrays_np_stack_gave():
     Python scalars, bools, small arrays) give np.stack's dtype, shape and values."""
     from types import SimpleNamespace
 
-    from continuum_sim.model.cutting import CuttingObserver
+    from continuum_sim.plant.cut_record import CuttingObserver
 
     rng = np.random.default_rng(4)
     observer = CuttingObserver.__new__(CuttingObserver)
@@ -132,7 +132,8 @@ def test_cutting_record_rows_become_the_arrays_np_stack_gave():
         "empty": [],
     }
     grid = SimpleNamespace(cut_map=lambda: np.zeros((2, 2)), lo=np.zeros(3), h=np.ones(3))
-    observer.cutter = SimpleNamespace(grid=grid, spindle=SimpleNamespace(events=[]))
+    observer.cutter = SimpleNamespace(grid=grid)
+    observer.spindle = SimpleNamespace(events=[])
     series = observer.record().series
     for key, rows in observer.rows.items():
         expected = np.stack(rows) if rows else np.zeros((0,))

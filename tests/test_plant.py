@@ -13,7 +13,7 @@ import pytest
 from continuum_sim.geometry import ArmGeometry
 from continuum_sim.glbackend import choose_gl_backend
 from continuum_sim.model.arm import build_single_arm_model
-from continuum_sim.model.motors import MotorBank, MotorRatings, arm_motor_bank
+from continuum_sim.plant.drive import MotorBank, MotorRatings, arm_motor_bank
 from continuum_sim.model.options import ModelOptions
 
 choose_gl_backend()
@@ -158,7 +158,7 @@ def test_steady_hold_has_no_tension_chatter():
     from scipy.signal import butter, sosfiltfilt
 
     from continuum_sim.kinematics import cable_lengths
-    from continuum_sim.model.motors import pretension_offsets
+    from continuum_sim.model.cable_elasticity import pretension_offsets
     from continuum_sim.model.state import set_arm_configuration
 
     geometry = ArmGeometry()
@@ -260,7 +260,7 @@ def test_held_grasp_has_no_tension_chatter_and_the_explicit_spring_is_its_cause(
 def test_stable_step_divides_the_step_for_stiff_cables_only():
     """The shipped rope keeps the 4 ms step; a 3.7 mm rope (≈1.7e6 N/m proximal) gets the
     smallest whole division that brings k·h² within the verified limit; off: as configured."""
-    from continuum_sim.model.motors import CABLE_STEP_LIMIT, cable_stiffness, stable_timestep
+    from continuum_sim.model.cable_elasticity import CABLE_STEP_LIMIT, cable_stiffness, stable_timestep
 
     geometry = ArmGeometry()
     shipped = ModelOptions(timestep=0.004)
@@ -290,7 +290,7 @@ def test_stiff_cables_run_at_the_stable_step_without_diverging():
 
 def test_stable_step_divides_the_step_for_hinges_above_the_verified_range():
     """Hinges ×8 (the top of the design range) keep 4 ms; ×16, which diverged at 4 ms, gets 2 ms."""
-    from continuum_sim.model.motors import JOINT_STEP_LIMIT, stable_timestep, stiffest_joint
+    from continuum_sim.model.cable_elasticity import JOINT_STEP_LIMIT, stable_timestep, stiffest_joint
 
     geometry = ArmGeometry()
     assert stable_timestep(geometry, ModelOptions(timestep=0.004, stiffness_scale=8.0)) == 0.004
