@@ -13,8 +13,8 @@ import pytest
 from continuum_sim.geometry import ArmGeometry
 from continuum_sim.glbackend import choose_gl_backend
 from continuum_sim.model.arm import build_single_arm_model
-from continuum_sim.plant.drive import MotorBank, MotorRatings, arm_motor_bank
 from continuum_sim.model.options import ModelOptions
+from continuum_sim.plant.drive import MotorBank, MotorRatings, arm_motor_bank
 
 choose_gl_backend()
 import mujoco  # noqa: E402

@@ -9,7 +9,7 @@ plate is static (clamped); its sample corner is a free body welded to it by the
 equality ``sample_weld``. The plate's geoms (two boxes around the sample and the kerf
 band, and the sample's box) are what the gripper, the arms and the carried sample touch;
 the cutter collides with none of them: what it cuts is the voxel foam of
-``cutting.FoamCutter`` (``SceneOptions.foam``), which covers the whole plate outside the
+``plant.cutter.FoamCutter`` (``SceneOptions.foam``), which covers the whole plate outside the
 clamp, sample and kerf band included. Foam contacts are soft
 (``layout.plate.contact_solref/solimp``) and win over the other geom's parameters by
 collision priority.

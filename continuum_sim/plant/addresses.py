@@ -20,8 +20,7 @@ from numba.extending import intrinsic
 _PTR = ir.IntType(8).as_pointer()
 
 
-@intrinsic
-def f64(_typingctx: Any, _addr: Any) -> Any:
+def _f64(_typingctx: Any, _addr: Any) -> Any:
     """An int64 address as a float64 pointer (for ``numba.carray``)."""
     def codegen(context: Any, builder: Any, _signature: Any, args: Any) -> Any:
         return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
@@ -38,16 +37,20 @@ def _caller(n_pointers: int) -> Any:
     return types.void(*([types.int64] * (n_pointers + 2))), codegen
 
 
-@intrinsic
-def call_jac(_typingctx: Any, _fn: Any, _m: Any, _d: Any, _jacp: Any, _jacr: Any, _point: Any, _body: Any) -> Any:
+def _call_jac(_typingctx: Any, _fn: Any, _m: Any, _d: Any, _jacp: Any, _jacr: Any, _point: Any, _body: Any) -> Any:
     """``mj_jac(m, d, jacp, jacr, point, body)`` through its address (all arguments int64)."""
     return _caller(5)
 
 
-@intrinsic
-def call_solve(_typingctx: Any, _fn: Any, _m: Any, _d: Any, _x: Any, _y: Any, _n: Any) -> Any:
+def _call_solve(_typingctx: Any, _fn: Any, _m: Any, _d: Any, _x: Any, _y: Any, _n: Any) -> Any:
     """``mj_solveM(m, d, x, y, n)`` through its address (all arguments int64)."""
     return _caller(4)
+
+
+# (typed Any: numba's own hints describe the intrinsic's typing signature, not the kernel call)
+f64: Any = intrinsic(_f64)
+call_jac: Any = intrinsic(_call_jac)
+call_solve: Any = intrinsic(_call_solve)
 
 
 def mujoco_functions() -> tuple[int, int] | None:

@@ -9,10 +9,10 @@ Detachment is a question of face connectivity (``scipy.ndimage.label``'s default
 structure): the sample comes free when the material under the gripper's jaws no longer
 connects to the anchor face. ``held_anchored`` answers it with a flood fill from the held
 material that stops at the anchor face (a connected grid, the usual case, costs a short
-walk), and ``free_loose`` removes what lost the anchor. Measured on the default grid
-(``docs/architecture.md``): the labelling of the whole grid takes ~100× the early-exit
-flood, so the flood is the production path and ``ndimage.label`` its test oracle
-(``tests/test_foam.py``: the same verdict and the same freed voxels).
+walk), and ``free_loose`` removes what lost the anchor. On the default grid (160×150×10,
+``python benchmarks/connectivity.py``) a check takes 0.036 ms CPU, a labelling of the whole
+grid 1.8 ms (~50×), so the flood is the production path and ``ndimage.label`` its test
+oracle (``tests/test_foam.py``: the same verdict and the same freed voxels).
 """
 
 from __future__ import annotations
