@@ -61,6 +61,9 @@ class CuttingRecord:
                    np.asarray(data["spindle_stall_times"]))
 
 
+_N_MEANS = 10  # the sums the observer averages per tick (``cutter_kernels.SUMS_MEANS``)
+
+
 class CuttingObserver:
     """The tick-loop hooks of ``scenario.simulate`` (duck-typed ``Observer``): the spindle
     drive's PI loop and the cutter's step before every physics step (set-point from
@@ -71,7 +74,7 @@ class CuttingObserver:
 
     def __init__(self, sim: Any, layout: Any, scene: Any, every: int = 1) -> None:
         from .cutter import foam_cutter
-        from .cutter_kernels import SUMS
+        from .cutter_kernels import SUMS, SUMS_MEANS
         from .spindle import SpindleDrive
 
         arm = sim.handles.tool_arm["grinder"] if hasattr(sim.handles, "tool_arm") else "left"
@@ -82,33 +85,35 @@ class CuttingObserver:
         self.rows: dict[str, list[Any]] = {k: [] for k in RECORD_FIELDS}
         self._row_lists = [self.rows[k] for k in RECORD_FIELDS]
         self.sums = np.zeros(1, SUMS)  # over the tick's steps, added to by ``FoamCutter.tick``
+        self._sums = self.sums.view(np.float64)  # (the same, as one vector)
+        assert SUMS_MEANS == _N_MEANS and self._sums.size == _N_MEANS + 3
         self._reference = 0.0
         self._xpos = sim.data.geom_xpos[self.cutter.cutter]
+        self._opt = sim.model.opt
 
     def start(self, sim: Any) -> None:
         """Nothing to prepare: the cutter was built uncut."""
 
     def before_tick(self, sim: Any) -> None:
-        s = self.sums[0]
+        sums = self._sums
         if sim.tick % self.every == 0:
-            n = max(int(s["steps"]), 1)
+            n = max(sums[-1], 1.0)
+            mean = sums[:_N_MEANS] / n
             c = self.cutter
-            force = s["force"] / n
-            # In RECORD_FIELDS order; the one array that aliases MuJoCo's state copied.
+            # In RECORD_FIELDS order (the SUMS fields' order); the one array that aliases MuJoCo's state copied.
             values = (
-                force, s["feed_force"] / n, s["normal_force"] / n, s["torque"] / n, s["power"] / n, s["mrr"] / n,
-                s["depth"] / n, s["chip"] / n, s["active"] != 0, s["blocked"] != 0,
+                mean[0:3], mean[3], mean[4], mean[5], mean[6], mean[7], mean[8], mean[9], sums[_N_MEANS] != 0.0,
+                sums[_N_MEANS + 1] != 0.0,
                 c.removed_volume, self._xpos.copy(), self._reference, c.spindle_speed, self.spindle.stalled,
             )
             for rows, value in zip(self._row_lists, values, strict=True):
                 rows.append(value)
-        self.sums[0] = 0
+        sums[:] = 0.0
 
     def before_physics_step(self, sim: Any) -> None:
         commands = getattr(sim, "commands", None)
         self._reference = reference = float(getattr(commands, "spindle_speed", 0.0) or 0.0)
-        dt = sim.model.opt.timestep
-        self.spindle.step(sim.data, reference, dt)
+        self.spindle.step(sim.data, reference, self._opt.timestep)
         self.cutter.tick(self.sums)
 
     def after_physics_step(self, sim: Any) -> None:

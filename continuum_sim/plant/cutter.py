@@ -153,6 +153,7 @@ class FoamCutter:
                            ("jac", self._jac), ("minv", self._minv), ("point", self._point)):
             assert view.dtype == np.float64 and view.flags.c_contiguous, name
             p[name] = view.ctypes.data
+        self._opt, self._spindle_record = model.opt, spindle.record
         self._warm_up()
         self.reset()
 
@@ -245,7 +246,7 @@ class FoamCutter:
         grid, data = self.grid, self.data
         if self.native:
             ck.tick(grid.material, grid.cut, grid.removed_at, self._recent, self._probes, self.record, self.pointers,
-                    sums, self.spindle.record, data.time, self.model.opt.timestep)
+                    sums, self._spindle_record, data.time, self._opt.timestep)
             return
         if ck.begin(self._recent, self.record, self.pointers, self.spindle.record):
             model, point = self.model, self._point
@@ -253,7 +254,7 @@ class FoamCutter:
             mujoco.mj_jac(model, data, self._jac, None, point, self.body)
             mujoco.mj_solveM(model, data, self._minv, self._jac[:2])
         ck.finish(grid.material, grid.cut, grid.removed_at, self._recent, self._probes, self.record, self.pointers,
-                  sums, data.time, self.model.opt.timestep)
+                  sums, data.time, self._opt.timestep)
 
     def step(self) -> CutState:
         """``tick`` on scratch sums; the step's ``CutState``."""

@@ -47,11 +47,13 @@ POINTERS = np.dtype([
     ("qfrc", "i8"), ("qacc", "i8"), ("qvel", "i8"), ("jac", "i8"), ("minv", "i8"), ("point", "i8"),
 ])
 
-# The observer's sums over a tick's steps (``record.CuttingObserver``).
+# The observer's sums over a tick's steps (``cut_record.CuttingObserver``): all float64, so the
+# observer reads them as one vector (``SUMS_MEANS`` the slots it averages, then the flags and the count).
 SUMS = np.dtype([
     ("force", "f8", (3,)), ("feed_force", "f8"), ("normal_force", "f8"), ("torque", "f8"), ("power", "f8"),
-    ("mrr", "f8"), ("depth", "f8"), ("chip", "f8"), ("active", "i8"), ("blocked", "i8"), ("steps", "i8"),
+    ("mrr", "f8"), ("depth", "f8"), ("chip", "f8"), ("active", "f8"), ("blocked", "f8"), ("steps", "f8"),
 ])
+SUMS_MEANS = 10
 
 # Rows of the per-probe constants ``probes`` (engagement angles θ: cos, sin, and the bin integrals).
 P_COS, P_SIN, P_ICC, P_ICS, P_IC = range(5)

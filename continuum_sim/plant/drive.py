@@ -231,6 +231,10 @@ class MotorDrive:
         self._const = np.concatenate([b.const for b in all_banks], axis=1)
         self._state = np.zeros((3, int(self._bounds[-1])))
         self._s = np.zeros(int(self._bounds[-1]))
+        self._slices = [slice(int(a), int(b)) for a, b in itertools.pairwise(self._bounds)]
+        self._views: list[tuple[Array, Array, Array]] | None = None  # the banks' state as views into ``_state``
+        self._data: Any = None  # the MjData whose arrays ``_arrays`` holds
+        self._arrays: tuple[Any, ...] = ()
 
     def __call__(self, sim: Any, commands: Any) -> None:
         dt = 0.0 if sim.tick < 0 else sim.control_period
@@ -245,15 +249,23 @@ class MotorDrive:
         self.spindle.command(data, commands.spindle_speed)
 
     def _fused_command(self, data: Any, commands: Any, banks: list[MotorBank], dt: float) -> None:
-        """``MotorBank.command`` of every bank in one kernel call (elastic model, dt > 0, banks started)."""
-        state, s = self._state, self._s
-        slices = [slice(int(a), int(b)) for a, b in itertools.pairwise(self._bounds)]
-        for bank, sl in zip(banks, slices, strict=True):
-            state[0, sl], state[1, sl], state[2, sl] = bank.position, bank.integral, bank.set_point
+        """``MotorBank.command`` of every bank in one kernel call (elastic model, dt > 0, banks started).
+
+        The motors' state lives in one (3, n) array updated in place; each bank's ``position``,
+        ``integral`` and ``set_point`` are views of its columns. A bank whose attributes were
+        replaced since (its own ``command``/``reset``) is gathered anew."""
+        state, s, slices = self._state, self._s, self._slices
+        views = self._views
+        if views is None or any(b.position is not v[0] or b.integral is not v[1] or b.set_point is not v[2]
+                                for b, v in zip(banks, views, strict=True)):
+            for bank, sl in zip(banks, slices, strict=True):
+                state[0, sl], state[1, sl], state[2, sl] = bank.position, bank.integral, bank.set_point
+                bank.position, bank.integral, bank.set_point = state[0, sl], state[1, sl], state[2, sl]
+            self._views = [(b.position, b.integral, b.set_point) for b in banks]
         for arm, sl in zip(self.banks, slices, strict=False):
             s[sl] = commands.cable_lengths[arm]
         s[-1] = commands.gripper_cable
-        drive_motors(state, s, data.ten_length, data.ctrl, self.model.actuator_gainprm, self.model.actuator_biasprm,
-                     self._index, self._const, self._nc, dt)
-        for bank, sl in zip(banks, slices, strict=True):
-            bank.position, bank.integral, bank.set_point = state[0, sl].copy(), state[1, sl].copy(), state[2, sl].copy()
+        if data is not self._data:  # (each ``data.<field>`` access builds a new array object)
+            self._data = data
+            self._arrays = (data.ten_length, data.ctrl, self.model.actuator_gainprm, self.model.actuator_biasprm)
+        drive_motors(state, s, *self._arrays, self._index, self._const, self._nc, dt)
