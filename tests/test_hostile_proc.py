@@ -165,6 +165,13 @@ def _children(pid: int) -> set[int]:
     return out
 
 
+def _cmdline(pid: int) -> bytes:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes()
+    except OSError:
+        return b""
+
+
 def _alive(pid: int) -> bool:
     try:
         state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
@@ -187,9 +194,14 @@ def test_stopped_sweep_driver_leaves_no_workers(tmp_path, how):
         time.sleep(0.2)
         workers = _children(driver.pid)
     assert len(workers) >= 4
-    if how == "sigkill":
+    if how == "sigkill":  # the forkserver and the two workers go at once (kernel signal, pidfd watchers): within 1 s
+        pool = {p for p in workers if b"resource_tracker" not in _cmdline(p)}
         driver.kill()
         driver.wait()
+        end = time.monotonic() + 1.0
+        while any(_alive(p) for p in pool) and time.monotonic() < end:
+            time.sleep(0.02)
+        assert not [p for p in pool if _alive(p)], "pool processes alive 1 s after the driver's SIGKILL"
     else:
         time.sleep(1.0)  # the workers are inside their variants
         os.killpg(driver.pid, signal.SIGINT)

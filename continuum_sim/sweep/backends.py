@@ -23,7 +23,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from ..configio import ConfigError, to_dict
-from ..lifetime import die_with
+from ..lifetime import die_with, mark_starter
 from .spec import SweepSpec, Variant
 from .worker import describe, evaluate_payload, warm_up
 
@@ -81,7 +81,8 @@ def _executor(workers: int) -> ProcessPoolExecutor:
     # forkserver: workers fork from a server that has already imported MuJoCo and
     # dm_control, so a worker starts in milliseconds and never inherits driver threads.
     context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload(["continuum_sim.sweep.worker", "continuum_sim.sweep.static"])
+    mark_starter()  # the forkserver (a child of this driver) exits the moment the driver is gone
+    context.set_forkserver_preload(["continuum_sim.sweep.forkserver_guard", "continuum_sim.sweep.worker", "continuum_sim.sweep.static"])
     return ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=worker_init, initargs=(os.getpid(),))
 
 
