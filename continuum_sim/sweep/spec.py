@@ -83,17 +83,34 @@ class SweepSpec:
     def n_variants(self) -> int:
         return math.prod(len(axis.values) for axis in self.axes)
 
-    def variants(self) -> list[Variant]:
-        """All variants in grid order (cartesian product, last axis fastest)."""
-        out = []
-        for index, combo in enumerate(np.ndindex(*[len(a.values) for a in self.axes])):
-            params = tuple((axis.path, axis.values[i]) for axis, i in zip(self.axes, combo))
-            out.append(Variant(index, params, variant_id(params, self.evaluation)))
-        return out
+    def variants(self, progress: bool = False) -> list[Variant]:
+        """All variants in grid order (cartesian product, last axis fastest).
+
+        Made once per spec (10^5 variants: ~2-4 s of hashing; the run, the table and the
+        plots all ask), with a bar on stderr above 20,000 when ``progress``.
+        """
+        cached = self.__dict__.get("_variants")
+        if cached is None:
+            from tqdm import tqdm
+
+            out = []
+            evaluation = self.evaluation.to_dict()  # once, not per variant (10^5 variants: 12 s -> 2 s)
+            combos = np.ndindex(*[len(a.values) for a in self.axes])
+            for index, combo in enumerate(tqdm(combos, total=self.n_variants, desc="listing variants", unit="variant",
+                                               disable=not progress or self.n_variants < 20_000, leave=False,
+                                               mininterval=0.5, file=sys.stderr, dynamic_ncols=True)):
+                params = tuple((axis.path, axis.values[i]) for axis, i in zip(self.axes, combo))
+                out.append(Variant(index, params, variant_id(params, self.evaluation, evaluation)))
+            cached = self.__dict__["_variants"] = tuple(out)  # frozen: not a field (equality, hashing unchanged)
+        return list(cached)
 
     def config_for(self, variant: Variant) -> ScenarioConfig:
-        """The base config with the variant's values set."""
-        return apply_params(self.base, variant.params)
+        """The base config with the variant's values set (checked valid by ``check_variants``).
+
+        Equal to ``apply_params`` (a rebuild from the dict, ~15 ms) in ~30 µs: only the
+        dataclasses on the swept paths are re-made.
+        """
+        return _replaced(self.base, [(path.split("."), value) for path, value in variant.params]) if variant.params else self.base
 
     def identity(self) -> dict[str, Any]:
         """What must match for a results folder to be resumed: base, grid, evaluation."""
@@ -104,9 +121,10 @@ class SweepSpec:
         }
 
 
-def variant_id(params: tuple[tuple[str, Number], ...], evaluation: Evaluation) -> str:
-    """Stable id: a hash of the parameter values and the evaluation spec."""
-    text = json.dumps({"params": [[p, v] for p, v in params], "evaluation": evaluation.to_dict()}, sort_keys=True)
+def variant_id(params: tuple[tuple[str, Number], ...], evaluation: Evaluation, evaluation_dict: dict[str, Any] | None = None) -> str:
+    """Stable id: a hash of the parameter values and the evaluation spec (``evaluation_dict``: its precomputed ``to_dict()``)."""
+    described = evaluation.to_dict() if evaluation_dict is None else evaluation_dict
+    text = json.dumps({"params": [[p, v] for p, v in params], "evaluation": described}, sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
