@@ -64,11 +64,12 @@ def _gone(pid: int) -> bool:
 
 
 def _watch(watched_pid: int, parent_pid: int) -> None:
+    pids = {watched_pid, parent_pid}
     try:
-        fds = [fd for fd in {_pidfd(watched_pid), _pidfd(parent_pid)} if fd is not None]
+        fds = [fd for fd in (_pidfd(pid) for pid in pids) if fd is not None]
     except ProcessLookupError:
         os._exit(1)
-    if len(fds) == len({watched_pid, parent_pid}):
+    if len(fds) == len(pids):
         while True:
             with contextlib.suppress(InterruptedError):
                 if select.select(fds, [], [])[0]:
