@@ -22,7 +22,19 @@ MAX_TARGET_M = 100.0  # |coordinate| of an ik target: the arm reaches 0.54 m; be
 
 
 def _load_geometry(path: str | None) -> ArmGeometry:
-    return ArmGeometry.default() if path is None else ArmGeometry.from_toml(path)
+    """An arm geometry TOML, or a scenario TOML (the arm of its ``[arm]`` table, as `run` builds it)."""
+    if path is None:
+        return ArmGeometry.default()
+    from .configio import config_from_file, from_dict
+
+    def build(data: dict) -> ArmGeometry:
+        if "arm" in data and "sections" not in data:
+            from .scenario.config import ScenarioConfig
+
+            return from_dict(ScenarioConfig, data).arm
+        return from_dict(ArmGeometry, data)
+
+    return config_from_file(path, build)
 
 
 def _cmd_fk(args: argparse.Namespace) -> int:
@@ -35,7 +47,9 @@ def _cmd_fk(args: argparse.Namespace) -> int:
     if args.deg:
         q = np.radians(q)
     if q.shape != (2 * geometry.n_sections,):
-        raise UsageError(f"q: expected {2 * geometry.n_sections} values (θ, φ per section), got {q.size}")
+        where = "the default arm" if args.config is None else f"the arm of {args.config}"
+        raise UsageError(f"Q: expected {2 * geometry.n_sections} values (θ, φ for each of the {geometry.n_sections} "
+                         f"sections of {where}), got {q.size}")
     for k, section in enumerate(geometry.sections):
         if not 0.0 <= q[2 * k] <= section.max_bend + 1e-12:
             raise UsageError(
@@ -426,9 +440,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     fk = sub.add_parser("fk", help="tip pose and cable lengths of one configuration")
     fk.add_argument("q", nargs="+", type=float, metavar="Q",
-                    help="θ, φ per section: θ0 φ0 θ1 φ1 θ2 φ2 for the 3-section arm (radians unless --deg)")
+                    help="θ, φ per section of the --config arm, 2 values per section (the default 3-section arm: "
+                         "θ0 φ0 θ1 φ1 θ2 φ2; radians unless --deg)")
     fk.add_argument("--deg", action="store_true", help="angles are in degrees")
-    fk.add_argument("--config", help="arm geometry TOML file")
+    fk.add_argument("--config", help="arm geometry TOML, or a scenario TOML (its [arm]); sets the number of sections")
     fk.add_argument("--json", action="store_true", help="print JSON")
     fk.set_defaults(func=_cmd_fk)
 
@@ -579,15 +594,26 @@ def _check_finite_args(parser: argparse.ArgumentParser, args: argparse.Namespace
                 raise UsageError(f"{name}: must be a finite number (got {v!r})")
 
 
-def _check_environment() -> None:
-    """Environment variables read later, deep inside an import: check them before any work."""
+def _check_environment(args: argparse.Namespace) -> None:
+    """Environment variables read later, deep inside an import: check them before any work.
+
+    Only commands that render choose (and check) a GL backend; the others run with GL
+    disabled, so a missing or broken GL library never matters to them (docs/errors.md).
+    """
     import os
 
-    from .glbackend import VALID_BACKENDS
+    from .glbackend import VALID_BACKENDS, GLBackendError, disable_gl, require_gl_backend
 
     requested = os.environ.get("MUJOCO_GL", "").strip().lower()
     if requested and requested not in VALID_BACKENDS:
         raise UsageError(f"MUJOCO_GL: must be one of {', '.join(VALID_BACKENDS)} or unset (got {requested[:40]!r})")
+    if args.command == "view" or getattr(args, "video", False):
+        try:
+            require_gl_backend()
+        except GLBackendError as exc:
+            raise UsageError(str(exc)) from None
+    else:
+        disable_gl()
 
 
 def _is_divergence(exc: BaseException) -> bool:
@@ -672,11 +698,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     # MuJoCo's model builder (dm_control) recurses once per nested body: 200 segments per
     # section (the documented maximum) nest 600+ bodies; Python 3.11+ frames do not use the C stack.
     sys.setrecursionlimit(max(old_limit, 10_000))
+    gl_environment = {name: os.environ.get(name) for name in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}  # restored after
     try:
         with warnings.catch_warnings():
             if not debug:
                 warnings.showwarning = summary.show
-            _check_environment()
+            _check_environment(args)
             _check_finite_args(parser, args)
             if isinstance(getattr(args, "out", None), str):  # every command's --out, file or folder
                 from .configio import check_output_path
@@ -710,6 +737,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return fail(EXIT_INTERNAL, f"internal error: {type(exc).__name__}: {_clip(str(exc), 250)} (rerun with --debug for the traceback)")
     finally:
         sys.setrecursionlimit(old_limit)
+        for name, value in gl_environment.items():  # main() called in-process (tests, scripts) leaves it as it was
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
         if in_main_thread and previous is not None:
             signal.signal(signal.SIGTERM, previous)
 

@@ -17,6 +17,7 @@ import pytest
 from continuum_sim.cli import EXIT_USAGE, main
 from continuum_sim.configio import dumps_toml, to_dict
 from continuum_sim.geometry import ArmGeometry
+from continuum_sim.scenario.config import ScenarioConfig
 
 RECORDING_DIR = Path(__file__).resolve().parents[1] / "validation" / "opencr_ftdcr_v4"
 RECORDING = str(RECORDING_DIR / "ftdcr_v4_val.recording.csv")  # a real recording (docs/sysid.md)
@@ -50,6 +51,9 @@ def files(tmp_path_factory) -> dict[str, str]:
     one = to_dict(ArmGeometry.default())
     one["sections"] = one["sections"][:1]
     put("one_section", dumps_toml(one).encode())
+    scenario = to_dict(ScenarioConfig.default())
+    scenario["arm"]["sections"] = scenario["arm"]["sections"][:1]
+    put("one_section_scenario", dumps_toml(scenario).encode())  # a scenario TOML, as `run --config` takes
     paths["folder"] = root / "folder.toml"
     paths["folder"].mkdir()
     paths["fifo"] = root / "fifo.toml"
@@ -74,6 +78,9 @@ def files(tmp_path_factory) -> dict[str, str]:
     put("spec_ok", b'[grid]\n"model.stiffness_scale" = [1.0, 2.0]\n[evaluation]\nkind = "gravity_sag"\n')
     put("spec_bad_kind", b'[grid]\n"model.stiffness_scale" = [1.0]\n[evaluation]\nkind = "gravity"\n')
     put("spec_bad_path", b'[grid]\n"model.stifness_scale" = [1.0]\n[evaluation]\nkind = "gravity_sag"\n')
+    # every value valid alone; only timestep 2e-5 s at 40 Hz asks 1250 steps per tick (> 1000): variant 3 of 2x2x600
+    put("spec_combination", b'[grid]\n"model.timestep" = [0.004, 2e-5]\n"control.rate_hz" = [125.0, 40.0]\n'
+        b'"plan.cut_speed" = {start = 0.001, stop = 0.002, num = 600}\n[evaluation]\nkind = "scenario"\n')
     return {k: str(v) for k, v in paths.items()}
 
 
@@ -179,6 +186,8 @@ CASES = [  # (id, argv with {file} placeholders, exit code, fragments of the one
     ("fk-bend-limit", ["fk", "3", "0", "0", "0", "0", "0"], 2, ["θ0"]),
     ("fk-huge-arg", ["fk", "1" * 100_000, "0", "0", "0", "0", "0"], 2, ["finite"]),
     ("fk-one-section-wrong-count", ["fk", *["0.1"] * 6, "--config", "{one_section}"], 2, ["expected 2 values"]),
+    ("fk-one-section-scenario-wrong-count", ["fk", *["0.1"] * 6, "--config", "{one_section_scenario}"], 2,
+     ["expected 2 values", "1 sections", "one_section_scenario"]),
     ("fk-nan-in-file", ["fk", "0", "0", "--config", "{nan_section}"], 2, ["sections[0].length", "finite"]),
     ("fk-unknown-option", ["fk", "0", "0", "0", "0", "0", "0", "--bogus"], 2, ["unrecognized arguments"]),
     ("no-command", [], 2, ["required"]),
@@ -237,6 +246,8 @@ CASES = [  # (id, argv with {file} placeholders, exit code, fragments of the one
     ("sweep-too-big", ["sweep", "{spec_too_big}", "--out", "{tmp}/s"], 2, ["1000000 variants"]),
     ("sweep-bad-kind", ["sweep", "{spec_bad_kind}", "--out", "{tmp}/s"], 2, ["evaluation.kind"]),
     ("sweep-bad-path", ["sweep", "{spec_bad_path}", "--out", "{tmp}/s"], 2, ["stifness_scale"]),
+    ("sweep-combination-only", ["sweep", "{spec_combination}", "--out", "{tmp}/s"], 2,
+     ["model.timestep", "1250 MuJoCo steps", "variant 1800", "control.rate_hz = 40.0"]),
     ("sweep-workers-0", ["sweep", "{spec_ok}", "--workers", "0", "--out", "{tmp}/s"], 2, ["--workers"]),
     ("sweep-address-local", ["sweep", "{spec_ok}", "--address", "127.0.0.1:1", "--out", "{tmp}/s"], 2, ["--address"]),
     ("sweep-address-refused", ["sweep", "{spec_ok}", "--backend", "ray", "--address", "127.0.0.1:1", "--out", "{tmp}/s"], 2,
@@ -304,6 +315,35 @@ def test_fk_takes_a_one_section_arm(files, capsys):
     assert code == 0, err
     result = json.loads(out)
     assert len(result["q_rad"]) == 2 and len(result["cable_lengths_m"]) == 3
+
+
+def test_fk_takes_a_one_section_scenario(files, capsys):
+    code, out, err = run_cli(["fk", "0.3", "0.1", "--config", files["one_section_scenario"], "--json"], capsys)
+    assert code == 0, err
+    result = json.loads(out)
+    assert len(result["q_rad"]) == 2 and len(result["cable_lengths_m"]) == 3
+
+
+def test_fk_help_says_two_values_per_section(capsys):
+    code, out, _ = run_cli(["fk", "--help"], capsys)
+    assert code == 0 and "2 values per section" in " ".join(out.split()) and "scenario TOML" in out
+
+
+@pytest.mark.parametrize("backend, fragments", [
+    ("osmesa", ["MUJOCO_GL=osmesa: OSMesa not found", "apt-get install libosmesa6", "or use MUJOCO_GL=egl"]),
+    ("egl", ["MUJOCO_GL=egl: EGL not found", "libegl1"]),
+    ("disable", ["MUJOCO_GL=disable", "switched off"]),
+])
+def test_video_without_its_gl_library_is_one_line_before_work(backend, fragments, monkeypatch, tmp_path, capsys):
+    from continuum_sim import glbackend
+
+    monkeypatch.setattr(glbackend, "library_found", lambda name: name == ("egl" if backend == "osmesa" else "none"))
+    monkeypatch.setenv("MUJOCO_GL", backend)
+    code, _, err = run_cli(["run", "--video", "--quiet", "--out", str(tmp_path / "r")], capsys)
+    assert code == EXIT_USAGE
+    assert_one_line(err, *fragments)
+    assert not (tmp_path / "r").exists()  # nothing half-written
+    assert os.environ["MUJOCO_GL"] == backend  # main() leaves the environment as it found it
 
 
 def test_mujoco_gl_bogus_is_one_line_before_work(monkeypatch, tmp_path, capsys):

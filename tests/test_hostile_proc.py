@@ -165,6 +165,13 @@ def _children(pid: int) -> set[int]:
     return out
 
 
+def _cmdline(pid: int) -> bytes:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes()
+    except OSError:
+        return b""
+
+
 def _alive(pid: int) -> bool:
     try:
         state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
@@ -187,9 +194,14 @@ def test_stopped_sweep_driver_leaves_no_workers(tmp_path, how):
         time.sleep(0.2)
         workers = _children(driver.pid)
     assert len(workers) >= 4
-    if how == "sigkill":
+    if how == "sigkill":  # the forkserver and the two workers go at once (kernel signal, pidfd watchers): within 1 s
+        pool = {p for p in workers if b"resource_tracker" not in _cmdline(p)}
         driver.kill()
         driver.wait()
+        end = time.monotonic() + 1.0
+        while any(_alive(p) for p in pool) and time.monotonic() < end:
+            time.sleep(0.02)
+        assert not [p for p in pool if _alive(p)], "pool processes alive 1 s after the driver's SIGKILL"
     else:
         time.sleep(1.0)  # the workers are inside their variants
         os.killpg(driver.pid, signal.SIGINT)
@@ -269,3 +281,58 @@ def test_interrupt_inside_the_friction_callback_is_kept_and_reraised(monkeypatch
     with pytest.raises(KeyboardInterrupt):
         handle.check()
     handle.uninstall()  # leave no registration behind for the tests after this one
+
+
+@pytest.fixture(scope="module")
+def short_runs(tmp_path_factory):
+    """The same short run (first stage only, ~3 s) twice, into two folders."""
+    from continuum_sim.scenario.config import ScenarioConfig
+    from continuum_sim.scenario.runner import run_scenario
+
+    root = tmp_path_factory.mktemp("twice")
+    for name in ("a", "b"):
+        run_scenario(ScenarioConfig.default(), root / name, stages=("initial",), progress=False)
+    return root / "a", root / "b"
+
+
+def test_identical_runs_write_identical_trajectories(short_runs):
+    a, b = short_runs
+    assert (a / "trajectory.npz").read_bytes() == (b / "trajectory.npz").read_bytes()
+    metrics = json.loads((a / "metrics.json").read_text())
+    assert metrics["wall_seconds"] > 0 and metrics["wall_breakdown_s"]  # wall figures live here, only here
+    assert main(["metrics", str(a)]) == 0  # recomputed from the folder: the same text (wall keys carried over)
+
+
+GL_HARNESS = """
+import json, sys
+from continuum_sim import glbackend
+from continuum_sim.cli import main
+codes = {}
+for name, argv in json.loads(sys.argv[1]):
+    codes[name] = main(argv)
+    codes[name + " loaded GL"] = sorted(m for m in sys.modules if m.split(".")[0] == "OpenGL" or m.startswith("mujoco.osmesa")
+                                        or m.startswith("mujoco.egl") or m.startswith("dm_control._render.pyopengl"))
+glbackend.library_found = lambda backend: backend == "egl"  # no OSMesa on any machine, for the command that renders
+codes["run --video"] = main(["run", "--video", "--quiet", "--out", sys.argv[2]])
+print(json.dumps(codes))
+"""
+
+
+def test_commands_that_render_nothing_never_load_gl(short_runs, tmp_path):
+    """MUJOCO_GL=osmesa without OSMesa: build-model exited 70 (dm_control loaded the backend); now no GL is loaded
+    by build-model, plan, fk or metrics, and run --video is refused in one line, before any work."""
+    commands = [("build-model", ["build-model", "--models-only", "--out", str(tmp_path / "models")]),
+                ("plan", ["plan", "--no-plots", "--out", str(tmp_path / "plan")]),
+                ("fk", ["fk", "0.3", "0", "0.2", "1", "0.1", "2"]),
+                ("metrics", ["metrics", str(short_runs[0])])]
+    env = {**_env(), "MUJOCO_GL": "osmesa"}
+    env.pop("PYOPENGL_PLATFORM", None)
+    proc = subprocess.run([sys.executable, "-c", GL_HARNESS, json.dumps(commands), str(tmp_path / "video")],
+                          capture_output=True, text=True, env=env, timeout=300)
+    codes = json.loads(proc.stdout.splitlines()[-1])
+    for name, _ in commands:
+        assert codes[name] == 0 and codes[name + " loaded GL"] == [], (name, codes, proc.stderr)
+    assert codes["run --video"] == EXIT_USAGE
+    line = _one_line(proc.stderr)
+    assert "MUJOCO_GL=osmesa: OSMesa not found (apt-get install libosmesa6)" in line and "MUJOCO_GL=egl" in line
+    assert not (tmp_path / "video").exists()

@@ -330,8 +330,9 @@ def compute_metrics(trajectory: Trajectory, plan: TaskPlan, config: ScenarioConf
     out["timestep_s"] = float(config.model.timestep)  # the step the run used (model.stable_step may divide it)
     out["stages_run"] = list(tr.stages_run)
     out["sim_seconds"] = float(tr.t[-1])
-    out["wall_seconds"] = float(tr.wall_seconds)
-    out["real_time_factor"] = float(tr.t[-1] / tr.wall_seconds) if tr.wall_seconds > 0 else None
+    wall = tr.wall_seconds  # None for a loaded trajectory: recompute_metrics keeps metrics.json's
+    out["wall_seconds"] = None if wall is None else float(wall)
+    out["real_time_factor"] = float(tr.t[-1] / wall) if wall is not None and wall > 0 else None
     out["wall_breakdown_s"] = dict(tr.wall_breakdown_s)
     if tr.failure is not None:
         out["diverged"] = tr.failure

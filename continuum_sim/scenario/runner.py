@@ -227,7 +227,8 @@ def recompute_metrics(run_dir: Path) -> dict[str, Any]:
     """``metrics.json`` of a run folder recomputed from its ``config.toml`` and ``trajectory.npz`` alone.
 
     The plan is made again from the saved configuration (``plan_task`` is deterministic);
-    the run-folder state keys (``status``) are carried over from the folder's metrics.json.
+    the run-folder state keys (``status``) and the wall-clock keys (machine-dependent, so not
+    in the trajectory) are carried over from the folder's metrics.json.
     """
     run_dir = Path(run_dir)
     config = ScenarioConfig.from_toml(run_dir / "config.toml")
@@ -236,7 +237,7 @@ def recompute_metrics(run_dir: Path) -> dict[str, Any]:
     written = run_dir / "metrics.json"
     if written.exists():
         old = json.loads(written.read_text())
-        metrics.update({k: old[k] for k in RUN_STATE_KEYS if k in old})
+        metrics.update({k: old[k] for k in (*RUN_STATE_KEYS, *met.WALL_CLOCK_METRICS) if k in old})  # not in the npz
     return metrics
 
 

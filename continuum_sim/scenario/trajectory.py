@@ -2,9 +2,14 @@
 
 Saved as ``trajectory.npz`` in the run folder: one flat array per series (per-arm series
 as ``<arm>_<field>``, e.g. ``left_tcp_pos``), plus ``stage_names`` and a JSON ``meta``
-entry (tool pairing, contact kinds, cell removal times, detach time, stages run, failure,
-wall-clock breakdown). ``Trajectory.load(path)`` restores exactly what ``save`` wrote, so
-``continuum-sim metrics RUN_DIR`` recomputes ``metrics.json`` from the folder alone.
+entry (tool pairing, contact kinds, cell removal times, detach time, stages run, failure).
+``Trajectory.load(path)`` restores exactly what ``save`` wrote, so ``continuum-sim metrics
+RUN_DIR`` recomputes ``metrics.json`` from the folder alone.
+
+The file depends on the configuration only: two identical runs write byte-identical
+files. Wall-clock figures (machine-dependent) live in ``metrics.json``'s wall keys alone
+(``metrics.WALL_CLOCK_METRICS``), and the zip entries carry a fixed date (``np.savez``
+stamps each with the current time).
 """
 
 from __future__ import annotations
@@ -12,6 +17,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import zipfile
 from dataclasses import dataclass, field, fields
 from typing import Any
 
@@ -60,8 +66,8 @@ class Trajectory:
     detach_time: float | None  # s when the sample came free; None if it did not
     stages_run: tuple[str, ...]
     failure: str | None  # why the simulation stopped early (divergence), None if it ran to the end
-    wall_breakdown_s: dict[str, float]  # where the wall time went (machine-dependent)
-    wall_seconds: float
+    wall_breakdown_s: dict[str, float]  # where the wall time went (machine-dependent; not saved: {} when loaded)
+    wall_seconds: float | None  # not saved (metrics.json has it): None when loaded
     # The cutter's record (plant.cut_record.CuttingRecord.arrays(): cut_* series, kerf_map, ...);
     # empty for runs saved before the foam cutter.
     cutting: dict[str, np.ndarray] = field(default_factory=dict)
@@ -90,16 +96,12 @@ class Trajectory:
             "detach_time_s": self.detach_time,
             "stages_run": list(self.stages_run),
             "failure": self.failure,
-            "wall_breakdown_s": self.wall_breakdown_s,
-            "wall_seconds": self.wall_seconds,
         }
 
     def to_bytes(self) -> bytes:
-        buffer = io.BytesIO()
         arrays: dict[str, Any] = {**self.series(), **self.cutting, "stage_names": np.array(self.stage_names),
                                    "meta": np.array(json.dumps(self._meta()))}
-        np.savez_compressed(buffer, **arrays)
-        return buffer.getvalue()
+        return npz_bytes(arrays)
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write ``trajectory.npz`` (atomically)."""
@@ -127,10 +129,29 @@ class Trajectory:
             detach_time=meta["detach_time_s"],
             stages_run=tuple(meta["stages_run"]),
             failure=meta["failure"],
-            wall_breakdown_s=dict(meta["wall_breakdown_s"]),
-            wall_seconds=float(meta["wall_seconds"]),
+            wall_breakdown_s=dict(meta.get("wall_breakdown_s", {})),  # files written before they moved out
+            wall_seconds=meta.get("wall_seconds"),
             cutting=_cutting_arrays(data),
         )
+
+
+ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # the zip format's earliest date: entries say nothing about when they were written
+
+
+def npz_bytes(arrays: dict[str, Any]) -> bytes:
+    """``np.savez_compressed``'s file, except that equal arrays give equal bytes (fixed entry dates).
+
+    Same layout as numpy writes (one deflated ``<key>.npy`` per array, ``np.lib.format``
+    headers), so ``np.load`` reads it; no pickled objects.
+    """
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED, allowZip64=True) as archive:
+        for key, value in arrays.items():
+            info = zipfile.ZipInfo(f"{key}.npy", date_time=ZIP_DATE)
+            info.compress_type = zipfile.ZIP_DEFLATED
+            with archive.open(info, "w", force_zip64=True) as entry:
+                np.lib.format.write_array(entry, np.asanyarray(value), allow_pickle=False)
+    return buffer.getvalue()
 
 
 def _arm_series(data: dict[str, np.ndarray], arm: str, name: str) -> np.ndarray:

@@ -23,7 +23,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from ..configio import ConfigError, to_dict
-from ..lifetime import die_with
+from ..lifetime import die_with, mark_starter
 from .spec import SweepSpec, Variant
 from .worker import describe, evaluate_payload, warm_up
 
@@ -81,7 +81,8 @@ def _executor(workers: int) -> ProcessPoolExecutor:
     # forkserver: workers fork from a server that has already imported MuJoCo and
     # dm_control, so a worker starts in milliseconds and never inherits driver threads.
     context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload(["continuum_sim.sweep.worker", "continuum_sim.sweep.static"])
+    mark_starter()  # the forkserver (a child of this driver) exits the moment the driver is gone
+    context.set_forkserver_preload(["continuum_sim.sweep.forkserver_guard", "continuum_sim.sweep.worker", "continuum_sim.sweep.static"])
     return ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=worker_init, initargs=(os.getpid(),))
 
 
@@ -125,16 +126,21 @@ def _failed(reason: str) -> dict[str, Any]:
 
 
 # ------------------------------------------------------------------ shared model
-def run_shared(spec: SweepSpec, variants: Sequence[Variant], workers: int, on_result: OnResult) -> None:
+def run_shared(spec: SweepSpec, variants: Sequence[Variant], workers: int, on_result: OnResult, progress: bool = False) -> None:
     """Static evaluations in-process: one compiled model per structure, rollout threads."""
     import socket
 
-    from .static import evaluate_static_shared
+    from tqdm import tqdm
 
-    configs = [spec.config_for(v) for v in variants]
+    from .static import evaluate_static_shared, structural_paths
+
+    configs = [spec.config_for(v) for v in tqdm(variants, desc="preparing variants", unit="variant", leave=False, mininterval=0.5,
+                                                 disable=not progress or len(variants) < 20_000, file=sys.stderr, dynamic_ncols=True)]
     host, pid = socket.gethostname(), os.getpid()
     start, cpu_start = time.perf_counter(), time.process_time()
-    for indices, results in evaluate_static_shared(configs, spec.evaluation, nthread=workers):
+    structural = [i for i, path in enumerate(spec.paths) if path in structural_paths(spec.paths)]
+    keys = [tuple(v.params[i][1] for i in structural) for v in variants]  # = structure_key grouping, without it
+    for indices, results in evaluate_static_shared(configs, spec.evaluation, nthread=workers, keys=keys):
         now, cpu_now = time.perf_counter(), time.process_time()
         share = (now - start) / len(indices)  # a batch's wall and CPU time, shared by its variants
         cpu_share = (cpu_now - cpu_start) / len(indices)

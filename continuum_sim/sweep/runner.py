@@ -81,7 +81,7 @@ def run_sweep(
     with store.lock():
         store.prepare(spec)
         records = store.load()
-        variants = spec.variants()
+        variants = spec.variants(progress=progress)
         wanted = {v.variant_id for v in variants}
         records = {k: r for k, r in records.items() if k in wanted}
         pending = [
@@ -109,7 +109,7 @@ def run_sweep(
                 if backend == "ray":
                     backends.run_ray(spec, pending, workers, address, run_root, on_result)
                 elif mode == "shared":
-                    backends.run_shared(spec, pending, n_workers, on_result)
+                    backends.run_shared(spec, pending, n_workers, on_result, progress=progress)
                 else:
                     backends.run_processes(spec, pending, n_workers, run_root, on_result)
         finally:

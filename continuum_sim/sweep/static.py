@@ -21,7 +21,7 @@ import copy
 import dataclasses
 import fnmatch
 import json
-from collections.abc import Iterator
+from collections.abc import Hashable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -345,18 +345,32 @@ def evaluate_static(config: ScenarioConfig, evaluation: Evaluation) -> dict[str,
     return result
 
 
+def structural_paths(paths: Sequence[str]) -> list[str]:
+    """The swept ``paths`` that can change ``structure_key`` (the others are patched or unused by the model).
+
+    A config that differs from another only in its values at the other paths has the
+    same key, so a sweep groups its variants by their values at these paths alone instead
+    of ``structure_key``'s ~2 ms per config (10^5 variants: 190 s). A path inside a
+    patchable list (``...leaf_angles_deg.1``) counts as structural: more groups, same results.
+    """
+    return [path for path in paths
+            if path.split(".")[0] not in UNUSED_BY_MODEL and not any(fnmatch.fnmatchcase(path, p) for p in PATCHABLE)]
+
+
 def evaluate_static_shared(
-    configs: list[ScenarioConfig], evaluation: Evaluation, nthread: int = 1, chunk: int | None = None
+    configs: list[ScenarioConfig], evaluation: Evaluation, nthread: int = 1, chunk: int | None = None,
+    keys: Sequence[Hashable] | None = None,
 ) -> Iterator[tuple[list[int], list[dict[str, float | None] | EvaluationFailed]]]:
     """Many variants, one compiled model per structure, ``nthread`` rollout threads.
 
     Yields (indices into ``configs``, their results) chunk by chunk, so a caller can
-    record finished variants while the rest run.
+    record finished variants while the rest run. ``keys``: one per config, equal exactly
+    where ``structure_key`` is (a sweep's values at its ``structural_paths``).
     """
     chunk = chunk or max(4, 4 * nthread)
-    groups: dict[str, list[int]] = {}
+    groups: dict[Hashable, list[int]] = {}
     for i, config in enumerate(configs):
-        groups.setdefault(structure_key(config, evaluation), []).append(i)
+        groups.setdefault(structure_key(config, evaluation) if keys is None else keys[i], []).append(i)
     for members in groups.values():
         try:
             shared = build_model(configs[members[0]], evaluation)
@@ -390,5 +404,6 @@ __all__ = [
     "evaluate_static_shared",
     "model_bytes",
     "patch_model",
+    "structural_paths",
     "structure_key",
 ]

@@ -26,8 +26,9 @@ import numpy as np
 from mujoco import rollout
 from numpy.typing import NDArray
 
-from ..configio import atomic_write_text
+from ..configio import atomic_write_bytes, atomic_write_text
 from ..scenario.config import ScenarioConfig
+from ..scenario.trajectory import npz_bytes
 from .data import Recording
 from .plant import ReplayModel, build_replay_model, control_matrix
 
@@ -254,9 +255,7 @@ def write_replay_folder(out: Path, config: ScenarioConfig, rec: Recording, pred:
         ang = np.full(len(rec.time), np.nan)
         ang[rows] = quaternion_angle_deg(pred.quaternion[rows], rec.quaternion[rows])
         arrays["orientation_error_deg"] = ang
-    tmp = out / "trajectory.tmp.npz"
-    np.savez_compressed(tmp, **arrays)
-    os.replace(tmp, out / "trajectory.npz")
+    atomic_write_bytes(out / "trajectory.npz", npz_bytes(arrays))  # no entry dates: same replay, same bytes
     e = metrics["position_error_mm"]
     plot_paths(rec, {label: pred}, out / "plots" / "tool_paths.png",
                f"{rec.arm} arm replay: position error mean {e['mean']:.3g} / RMS {e['rms']:.3g} / max {e['max']:.3g} mm")
