@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from continuum_sim import distances
 from continuum_sim.glbackend import choose_gl_backend
 from continuum_sim.scenario import metrics as met
 
@@ -97,22 +98,22 @@ def test_video_recorder_rejects_unknown_camera(tmp_path):
 def test_polyline_distance_and_axis_angle():
     line = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]])
     pts = np.array([[0.5, 0.2], [1.3, 0.5], [2.0, 2.0], [-1.0, 0.0]])
-    np.testing.assert_allclose(met.polyline_distance(pts, line), [0.2, 0.3, np.sqrt(2), 1.0])
+    np.testing.assert_allclose(distances.polyline_distance(pts, line), [0.2, 0.3, np.sqrt(2), 1.0])
     axes = np.array([[0.0, 0.0, 1.0], [np.sin(0.1), 0.0, np.cos(0.1)]])
-    np.testing.assert_allclose(met.axis_angle_deg(axes, np.array([0, 0, 2.0])), [0.0, np.degrees(0.1)], atol=1e-12)
+    np.testing.assert_allclose(distances.axis_angle_deg(axes, np.array([0, 0, 2.0])), [0.0, np.degrees(0.1)], atol=1e-12)
 
 
 def test_backbone_distance_is_centre_gap_minus_radii():
     a = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     b = np.array([[0.5, 0.0, 1.0], [3.0, 0.0, 0.0]])
-    assert met.min_backbone_distance(a, np.array([0.1, 0.1]), b, np.array([0.05, 0.05])) == pytest.approx(0.35)
+    assert distances.min_backbone_distance(a, np.array([0.1, 0.1]), b, np.array([0.05, 0.05])) == pytest.approx(0.35)
 
 
 def test_backbone_distance_series_equals_the_per_frame_distance():
     rng = np.random.default_rng(5)
     a, b = rng.normal(size=(300, 7, 3)), rng.normal(size=(300, 5, 3))  # > one chunk of frames
     ra, rb = rng.uniform(0.0, 0.2, 7), rng.uniform(0.0, 0.2, 5)
-    series = met.min_backbone_distances(a, ra, b, rb, chunk=64)
+    series = distances.min_backbone_distances(a, ra, b, rb, chunk=64)
     direct = [np.min(np.linalg.norm(a[i][:, None] - b[i][None], axis=-1) - ra[:, None] - rb[None]) for i in range(300)]
     np.testing.assert_allclose(series, direct, atol=1e-14)
 

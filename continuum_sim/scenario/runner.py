@@ -24,6 +24,7 @@ import numpy as np
 from .. import kinematics as kin
 from ..configio import atomic_write_text
 from ..controllers import ControlContext, Controller, controller_spec, load_controller
+from ..distances import min_backbone_distances
 from ..limits import check_run_length, check_scenario
 from ..model.cable_path import release_data
 from ..model.handles import SceneHandles
@@ -206,7 +207,7 @@ def make_trajectory(series: dict[str, np.ndarray], handles: SceneHandles, plan: 
         fields = {name: series[f"{arm}_{name}"] for name in ArmTrajectory.__dataclass_fields__ if name != "q_cmd"}
         arms[arm] = ArmTrajectory(q_cmd=kin.from_bending(series[f"{arm}_w_cmd"]), **fields)
     first, second = handles.arms
-    distance = met.min_backbone_distances(arms[first].disk_pos, handles.disk_radii[first],
+    distance = min_backbone_distances(arms[first].disk_pos, handles.disk_radii[first],
                                           arms[second].disk_pos, handles.disk_radii[second])
     clock.lap("metrics")
     c = cutter.cutter
