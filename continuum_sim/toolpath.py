@@ -27,10 +27,10 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from . import kinematics as kin
-from .configio import ConfigError, require_positive, require_range
+from .configio import ConfigError, atomic_write_bytes, require_positive, require_range
 from .distances import polyline_distance
 from .geometry import ArmGeometry
-from .ik import IKOptions, StepLimits, interpolate_pose, interpolate_q, solve_path
+from .ik import IKOptions, StepLimits, _to_arm_frame, get_solver, interpolate_pose, interpolate_q, solve_ik, solve_path
 from .layout import TaskLayout
 from .workspace import UnreachableError, check_poses
 
@@ -343,8 +343,6 @@ def gripper_poses(layout: TaskLayout, cfg: PlanConfig) -> dict[str, Array]:
 
 def _nearest_solution(planner: _ArmPlanner, pose: Array, q_ref: Array, cfg: PlanConfig) -> Array:
     """IK of ``pose`` among the cold-start solutions, the one nearest ``q_ref`` in bending coordinates."""
-    from .ik import _to_arm_frame, get_solver
-
     solver = get_solver(planner.geometry, planner.orientation, planner.phase, planner.mount.tool, 0.0, cfg.ik)  # type: ignore[arg-type]
     target = _to_arm_frame(pose, planner.base)
     X = solver.seed_table()[0]
@@ -669,8 +667,6 @@ def save_plan(plan: TaskPlan, path) -> None:
     import io
     import json
 
-    from .configio import atomic_write_bytes
-
     buf = io.BytesIO()
     np.savez_compressed(
         buf, t=plan.t, stage=plan.stage, segment=plan.segment, q_left=plan.q_left, q_right=plan.q_right,
@@ -701,8 +697,6 @@ def planar_demo_path(layout: TaskLayout, cfg: PlanConfig, n_points: int = 25) ->
 
 def solve_planar_demo(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig) -> dict:
     """The planar demo path solved in both phase modes from the same cold-started first point."""
-    from .ik import solve_ik
-
     poses = planar_demo_path(layout, cfg)
     base = layout.left.base_transform()
     out = {}

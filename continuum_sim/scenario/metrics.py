@@ -14,11 +14,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..distances import axis_angle_deg, polyline_distance
+from .trajectory import CONTACT_KINDS, Trajectory
 
 if TYPE_CHECKING:
     from ..toolpath import TaskPlan
     from .config import ScenarioConfig
-    from .trajectory import Trajectory
 
 Array = NDArray[np.float64]
 
@@ -85,8 +85,6 @@ def task_outcome(metrics: dict[str, Any], all_stages: bool, force_rating: float)
 
 def compute_metrics(trajectory: Trajectory, plan: TaskPlan, config: ScenarioConfig) -> dict[str, Any]:
     """SPEC §8 metrics of a run, from its trajectory, its plan and its configuration only."""
-    from .trajectory import CONTACT_KINDS
-
     tr = trajectory
     stage = tr.stage.astype(int)
     grinder, gripper = tr.arms[tr.tool_arm["grinder"]], tr.arms[tr.tool_arm["gripper"]]
@@ -112,12 +110,12 @@ def compute_metrics(trajectory: Trajectory, plan: TaskPlan, config: ScenarioConf
     out["arms_touched"] = bool(forces[:, CONTACT_KINDS.index("arm_arm")].max() > 0.0)
     tension = np.concatenate([a.cable_tension for a in tr.arms.values()], axis=1)
     out["max_cable_tension_n"] = float(tension.max())
-    from .cable_friction import friction_metrics
+    from .cable_friction import friction_metrics  # lazily: the cable kernels (numba) only where a run is measured
 
     out["cable_friction"] = friction_metrics(tr, config)
     out["min_cable_tension_n"] = float(tension.min())
     if tr.cutting:
-        from ..model.cutting import CuttingRecord, cutting_metrics
+        from ..model.cutting import CuttingRecord, cutting_metrics  # lazily: the cutter kernels (numba)
 
         plate = config.layout.plate
         out["cutting"] = cutting_metrics(CuttingRecord.from_arrays(tr.cutting), plate.kerf_polyline(), plate.kerf_width)
