@@ -46,7 +46,7 @@ def test_video_recorder_writes_tiled_mp4_atomically(tmp_path):
     assert not list(tmp_path.glob(".*partial*"))
 
 
-def _record_clip(path, workers: int, chunk_frames: int = 60) -> int:
+def _record_clip(path, workers: int, chunk_frames: int = 60, reports: list | None = None) -> int:
     """Record 0.5 s of the falling box; the box turns invisible at t = 0.25 s (a run changing colours)."""
     from continuum_sim.video import VideoRecorder
 
@@ -60,6 +60,9 @@ def _record_clip(path, workers: int, chunk_frames: int = 60) -> int:
                 model.geom_rgba[box, 3] = 0.0
             video.maybe_capture(data)
             assert not path.exists()
+        if reports is not None:  # the frames still encoding, chunk by chunk (the run's "video" bar)
+            video.wait_for_workers(reports.append)
+            assert not path.exists()  # joined only by close()
     return video.frames
 
 
@@ -77,7 +80,9 @@ def test_parallel_video_workers_match_in_process_rendering(tmp_path):
     frames the in-process renderer gives, colour changes included, and leave no temporaries."""
     serial, parallel = tmp_path / "serial.mp4", tmp_path / "parallel.mp4"
     assert _record_clip(serial, workers=0) == 11
-    assert _record_clip(parallel, workers=2, chunk_frames=4) == 11
+    reports: list[int] = []
+    assert _record_clip(parallel, workers=2, chunk_frames=4, reports=reports) == 11
+    assert sorted(reports) == [3, 4, 4]  # every chunk reported once, with its frame count
     a, b = _read_frames(serial), _read_frames(parallel)
     assert a.shape == b.shape == (11, 120, 320, 3)
     assert np.abs(a - b).mean() < 2.0  # same pictures up to the encoder's rounding
