@@ -26,7 +26,8 @@ from ..configio import atomic_write_bytes, atomic_write_text
 from ..controllers import ControlContext, Controller, controller_spec, load_controller
 from ..distances import min_backbone_distances
 from ..limits import check_run_length, check_scenario
-from ..model.cable_path import release_data
+from ..model.cable_path import native_cable_xml, release_data
+from ..model.friction import cable_tendons
 from ..model.handles import SceneHandles
 from ..model.motors import MotorDrive
 from ..model.options import model_geometry
@@ -282,9 +283,6 @@ def run_model_files(root: Any, model: mujoco.MjModel, render_model: mujoco.MjMod
     if model is render_model:
         files["scene.xml"] = xml
         return files
-    from ..model.cable_path import native_cable_xml
-    from ..model.friction import cable_tendons
-
     files["scene.xml"] = NATIVE_MODEL_NOTE + native_cable_xml(xml, render_model, cable_tendons(render_model))
     files["scene_spatial.xml"] = xml
     return files
