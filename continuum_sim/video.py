@@ -25,8 +25,8 @@ import subprocess
 import sys
 import tempfile
 import threading
-from collections.abc import Sequence
-from concurrent.futures import Future, ProcessPoolExecutor
+from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from multiprocessing import get_context
 from pathlib import Path
@@ -308,6 +308,13 @@ class VideoRecorder:
         path = self._segment_dir / f"segment_{len(self._segments):05d}.mp4"
         self._segments.append((path, self._pool.submit(_worker_render, states, str(path))))
         self._pending = []
+
+    def wait_for_workers(self, report: Callable[[int], None]) -> None:
+        """Block until every frame captured so far is encoded, calling ``report(frames)`` as each chunk
+        finishes (a progress bar; ``close`` then only joins the segments). Nothing to wait for in-process."""
+        self._submit()
+        for future in as_completed([future for _, future in self._segments]):
+            report(future.result())
 
     def close(self, keep: bool = True) -> None:
         """Finish the file; with ``keep`` it is moved to its final name, else discarded.

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from importlib import resources
 from typing import Any
 
-from ..configio import ConfigError, config_from_file, from_dict, require_int, require_range, save_toml, to_dict
+from ..configio import ConfigError, config_from_file, dumps_toml, from_dict, require_int, require_range, save_toml, to_dict
 from ..control import ControlConfig
 from ..geometry import ArmGeometry
 from ..layout import TaskLayout
@@ -119,6 +119,4 @@ DEFAULTS_HEADER = """\
 
 def default_scenario_toml() -> str:
     """The text of the shipped defaults file, generated from the dataclass defaults."""
-    from ..configio import dumps_toml
-
     return DEFAULTS_HEADER + dumps_toml(to_dict(ScenarioConfig()))

@@ -387,14 +387,16 @@ class Recorder(Observer):
 class VideoObserver(Observer):
     """Streams frames into ``video.mp4`` at the configured rate of simulated time."""
 
-    def __init__(self, sim: Simulation, path: Any, simulation_config: Any, model: Any = None) -> None:
-        """``model``: the model to draw (default ``sim.model``; the spatial twin of a native-cable model)."""
+    def __init__(self, sim: Simulation, path: Any, simulation_config: Any, model: Any = None, progress: bool = False) -> None:
+        """``model``: the model to draw (default ``sim.model``; the spatial twin of a native-cable model).
+        ``progress``: a bar over the frames still encoding when the physics is done (the render workers lag)."""
         from ..video import VideoRecorder
 
         c = simulation_config
         self.render_model = sim.drawable_model if model is None else model
         self.video = VideoRecorder(self.render_model, path, c.cameras, c.video_width, c.video_height, c.video_fps,
                                    shadows=c.video_shadows)
+        self.progress = progress
 
     def after_tick(self, sim: Simulation) -> str | None:
         if self.render_model is not sim.model and sim.data.time + 1e-12 >= self.video.next_time:
@@ -403,7 +405,14 @@ class VideoObserver(Observer):
         return None
 
     def close(self, sim: Simulation) -> None:  # noqa: ARG002 - the hook's signature
-        self.video.close()
+        try:
+            if self.progress:
+                from tqdm import tqdm
+
+                with tqdm(total=self.video.frames, unit="frame", desc="video") as bar:
+                    self.video.wait_for_workers(bar.update)
+        finally:
+            self.video.close()
 
 
 class ProgressObserver(Observer):

@@ -24,6 +24,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..configio import atomic_write_bytes
+
 Array = NDArray[np.float64]
 
 CONTACT_KINDS = ("cutter", "gripper", "arm_arm", "arm_world")  # columns of ``contact_force``
@@ -105,8 +107,6 @@ class Trajectory:
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write ``trajectory.npz`` (atomically)."""
-        from ..configio import atomic_write_bytes
-
         atomic_write_bytes(path, self.to_bytes())
 
     @classmethod
