@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from numba.extending import intrinsic
 
-from .model.jit import jit_in_place
+from .plant.jit import jit_in_place
 
 _KERNELS: dict[str, Any] = {}
 _DBL_MIN = 2.2250738585072014e-308

@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from .jit import jit_in_place
+from ..plant.jit import jit_in_place
 
 _KERNELS: dict[str, Any] = {}
 # Bound by ``_bind_intrinsics`` (numba objects, made when the kernels are first compiled).
@@ -657,7 +657,7 @@ def _bind_intrinsics() -> None:
 def mujoco_functions() -> tuple[int, int] | None:
     """The addresses of ``mj_jac`` and ``mj_solveM`` in the loaded MuJoCo library (None: not
     found; the cutter then runs its Python step)."""
-    from .jit import mujoco_symbols
+    from ..plant.mujoco_native import mujoco_symbols
 
     found = mujoco_symbols("mj_jac", "mj_solveM")
     return None if found is None else (found[0], found[1])

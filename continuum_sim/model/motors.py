@@ -456,7 +456,7 @@ _KERNEL: list = []
 def _drive_kernel():
     """``_drive_motors`` compiled by numba (or loaded from its cache) on first use, outside any tick."""
     if not _KERNEL:
-        from .jit import jit, sigint_deferred
+        from ..plant.jit import jit, sigint_deferred
 
         with sigint_deferred():
             kernel = jit(_drive_motors)

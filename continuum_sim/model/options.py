@@ -8,7 +8,7 @@ from typing import Literal
 
 from ..configio import ConfigError, require_int, require_positive, require_range
 from ..geometry import ArmGeometry
-from .friction import CableFrictionConfig
+from .friction_options import CableFrictionConfig
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ from .. import kinematics as kin
 from ..configio import atomic_write_text
 from ..controllers import ControlContext, Controller, controller_spec, load_controller
 from ..limits import check_run_length, check_scenario
-from ..model.cable_path import release_data
+from ..plant.cable_path import release_data
 from ..model.handles import SceneHandles
 from ..model.motors import MotorDrive
 from ..model.options import model_geometry
@@ -169,7 +169,7 @@ def build_run_model(config: ScenarioConfig) -> tuple[Any, mujoco.MjModel, mujoco
     if config.model.cable_path == "spatial" or not config.model.tendons or config.model.joint == "ball":
         root, model = build_scene_model(config)
         return root, model, model
-    from ..model.cable_path import compile_native
+    from ..plant.cable_path import compile_native
     from ..model.scene import build_scene
 
     root = build_scene(config.arm, config.layout, config.model, config.scene)
@@ -179,7 +179,7 @@ def build_run_model(config: ScenarioConfig) -> tuple[Any, mujoco.MjModel, mujoco
 
 def make_simulation(config: ScenarioConfig, plan: TaskPlan, model: mujoco.MjModel, controller: Controller) -> Simulation:
     """The run's state: both arms in the plan's first configuration, ids resolved, controller context."""
-    from ..model.cable_path import make_data
+    from ..plant.cable_path import make_data
 
     geometry = model_geometry(config.arm, config.model)
     data = make_data(model)  # registered with the native cable path when the model has one

@@ -63,7 +63,7 @@ def _rollout_sampled(plants: list[ReplayModel], controls: list[Array], sample_st
     datas = [mujoco.MjData(models[0]) for _ in range(max(1, min(nthread, len(models))))]
     handle = None
     if friction is not None:
-        from ..model.friction import install_cable_friction
+        from ..plant.friction import install_cable_friction
 
         if len(models) != 1:
             raise ValueError("cable friction: one model per rollout call")
