@@ -20,7 +20,7 @@ numbers (``tests/test_control_kernels.py`` compares them on random inputs):
 The BLAS orders were read off this machine's OpenBLAS (AVX-512/FMA kernels); the equality
 tests would show if another platform's kernels summed differently.
 
-Lazy like ``model.friction.kernels``: nothing imports numba until a controller is built.
+Lazy: nothing imports numba until a controller is built.
 """
 
 from __future__ import annotations

@@ -203,8 +203,7 @@ class _Dispatch:
     def _ensure_callback(self) -> None:
         import mujoco
 
-        if self.callback is None:
-            self.callback = _build()
+        compile_callback()
         current = mujoco.get_mjcb_passive()
         if current is self.callback:
             return
@@ -267,6 +266,12 @@ def raise_pending() -> None:
     if t["pending"]:
         t["pending"] = 0
         raise RuntimeError(_UNREGISTERED)
+
+
+def compile_callback() -> None:
+    """Compile the callback (or load it from numba's cache) now, e.g. before timing; else on the first hook."""
+    if _DISPATCH.callback is None:
+        _DISPATCH.callback = _build()
 
 
 def installed_callback() -> Any:

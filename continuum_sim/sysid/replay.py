@@ -46,7 +46,7 @@ class Prediction:
 
 
 def _friction_of(config: ScenarioConfig):
-    """The config's cable friction when it acts (μ > 0), else None (model/friction.py)."""
+    """The config's cable friction when it acts (μ > 0), else None (plant/friction.py)."""
     friction = getattr(config.model, "cable_friction", None)
     return friction if friction is not None and friction.mu > 0.0 else None
 
