@@ -36,9 +36,9 @@ import numpy as np
 
 from continuum_sim import cable_lengths
 from continuum_sim.model.friction_options import DEFAULT_MU, DEFAULT_PRESLIDING, CableFrictionConfig
-from continuum_sim.plant import friction as fr
 from continuum_sim.model.options import model_geometry
 from continuum_sim.model.state import set_arm_configuration
+from continuum_sim.plant import friction as fr
 from continuum_sim.scenario.config import ScenarioConfig
 from continuum_sim.validation.capstan import anchor_tension as _anchor_tension
 from continuum_sim.validation.capstan import hold as _hold

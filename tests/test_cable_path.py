@@ -17,13 +17,13 @@ import numpy as np
 import pytest
 
 from continuum_sim.geometry import ArmGeometry
+from continuum_sim.model.arm import build_single_arm_model
 from continuum_sim.model.friction_options import CableFrictionConfig
+from continuum_sim.model.options import ModelOptions
 from continuum_sim.plant import cable_path as cp
 from continuum_sim.plant import friction as fr
 from continuum_sim.plant import passive
 from continuum_sim.plant.cable_routing import cable_tendons
-from continuum_sim.model.arm import build_single_arm_model
-from continuum_sim.model.options import ModelOptions
 
 
 def _arm_root(joint: str, timestep: float = 0.004):

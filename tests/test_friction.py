@@ -18,10 +18,10 @@ import pytest
 from continuum_sim.configio import ConfigError
 from continuum_sim.geometry import ArmGeometry
 from continuum_sim.model import friction_options as fo
-from continuum_sim.plant import friction as fr
-from continuum_sim.plant.cable_routing import CablePieces, cable_routing
 from continuum_sim.model.arm import build_single_arm_model
 from continuum_sim.model.options import ModelOptions
+from continuum_sim.plant import friction as fr
+from continuum_sim.plant.cable_routing import CablePieces, cable_routing
 from continuum_sim.validation import capstan
 
 CABLE = "arm/cable_0_0"  # proximal section, hole at 0°: pulling it bends the section toward +x

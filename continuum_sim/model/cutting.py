@@ -648,8 +648,8 @@ class FoamCutter:
 def _compiled_kernels() -> dict[str, Any]:
     """``cutting_kernels.kernels()``, each run once on a scratch grid so numba compiles (or
     loads its cache) here, with Ctrl-C held until done, not in the first cutting step."""
-    from . import cutting_kernels
     from ..plant.jit import sigint_deferred
+    from . import cutting_kernels
 
     with sigint_deferred():
         k = cutting_kernels.kernels()

@@ -8,6 +8,7 @@ addresses a per-data record holds. Where the library is not found by path
 (``passive``'s fallback, tested in ``tests/test_native_callback.py``).
 """
 
+# ruff: noqa: ARG001 - numba's intrinsic and codegen signatures are fixed
 from __future__ import annotations
 
 from typing import Any
@@ -97,13 +98,13 @@ def bind_symbol(symbol: str, buffer: np.ndarray) -> None:
     llb.add_symbol(symbol, buffer.ctypes.data)
 
 
-def view(field, dtype):  # type: ignore[no-untyped-def]  # (numba matches the overloads' unannotated signature)
+def view(field, dtype):  # (numba matches the overloads' unannotated signature)
     """The array of ``dtype`` a record's array field (address, shape...) describes (numba only)."""
     raise NotImplementedError("compiled code only")
 
 
 @overload(view)
-def _view(field, dtype):  # type: ignore[no-untyped-def]  # (unannotated: numba compares it with the lambdas')
+def _view(field, dtype):  # (unannotated: numba compares it with the lambdas')
     ndim = field.shape[0] - 1
     if ndim == 1:
         return lambda field, dtype: carray(pointer(field[0]), (field[1],), dtype)

@@ -25,11 +25,11 @@ from .. import kinematics as kin
 from ..configio import atomic_write_text
 from ..controllers import ControlContext, Controller, controller_spec, load_controller
 from ..limits import check_run_length, check_scenario
-from ..plant.cable_path import release_data
 from ..model.handles import SceneHandles
 from ..model.motors import MotorDrive
 from ..model.options import model_geometry
 from ..model.state import set_arm_configuration
+from ..plant.cable_path import release_data
 from ..toolpath import TaskPlan, plan_task
 from . import metrics as met
 from .cable_friction import CableFrictionObserver
@@ -169,8 +169,8 @@ def build_run_model(config: ScenarioConfig) -> tuple[Any, mujoco.MjModel, mujoco
     if config.model.cable_path == "spatial" or not config.model.tendons or config.model.joint == "ball":
         root, model = build_scene_model(config)
         return root, model, model
-    from ..plant.cable_path import compile_native
     from ..model.scene import build_scene
+    from ..plant.cable_path import compile_native
 
     root = build_scene(config.arm, config.layout, config.model, config.scene)
     model, spatial = compile_native(root)
