@@ -121,6 +121,8 @@ def install_cable_friction(model: Any, data: Any, config: CableFrictionConfig,
     the spatial tendons.
     """
     runtime = passive.runtime_of(data)
+    if runtime is None and passive.native_owner(model) is not None:
+        raise ValueError("cable friction: a data of a native-cable model must come from NativeCables.make_data")
     routing = runtime.routing if runtime is not None else cable_routing(model, tendon_ids)
     if config.mu <= 0.0:
         return CableFriction(routing, config, None)
