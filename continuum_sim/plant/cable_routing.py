@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from .cable_kernels import cable_pieces
+
 CABLE_TENDON_PATTERN = r"(^|/)cable_\d+_\d+$"
 
 
@@ -157,8 +159,6 @@ class CablePieces:
 
     def evaluate(self, data: Any) -> None:
         """Fill the pieces from ``data``'s kinematics (the kernel the passive callback runs)."""
-        from .cable_kernels import cable_pieces
-
         r = self.routing
         cable_pieces(data.site_xpos, data.xmat, data.xaxis, data.xanchor, r.piece_psite, r.piece_csite, r.piece_seg,
                      r.piece_base, r.seg_jnt, r.seg_njnt, r.seg_ball, r.seg_body, self.length, self.direction, self.grad)

@@ -340,6 +340,6 @@ def _build() -> Any:
     _DISPATCH.table[0]["fwdact"] = found[0]
     here = os.path.dirname(os.path.abspath(__file__))
     cache = drop_stale_cache("passive", tuple(os.path.join(here, f) for f in (
-        "passive.py", "cable_kernels.py", "mujoco_native.py", "cable_routing.py")), ("passive",))
+        "passive.py", "cable_kernels.py", "mujoco_native.py")), ("passive",))
     with sigint_deferred():  # compile (or load) here, not inside the C callback
         return cfunc(types.void(types.voidptr, types.voidptr), cache=cache, nogil=True)(_callback).ctypes
