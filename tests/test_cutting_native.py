@@ -241,11 +241,11 @@ def test_native_connectivity_on_a_cut_plate():
 
 def test_without_mujocos_library_by_path_the_cutter_takes_its_python_step(monkeypatch: pytest.MonkeyPatch) -> None:
     """The fused step calls mj_jac/mj_solveM by address; where the library is not found next to
-    the bindings (``jit.mujoco_symbols`` None) the cutter runs its Python step, the same numbers."""
-    from continuum_sim.model import jit
+    the bindings (``mujoco_native.mujoco_symbols`` None) the cutter runs its Python step, the same numbers."""
+    from continuum_sim.plant import mujoco_native
 
     assert ck.mujoco_functions() is not None  # here it is found
-    monkeypatch.setattr(jit, "mujoco_symbols", lambda *names: None)
+    monkeypatch.setattr(mujoco_native, "mujoco_symbols", lambda *names: None)
     assert ck.mujoco_functions() is None
     model, data, cutter = _rig(True)
     assert cutter._native_tick is None and cutter._fv is None
