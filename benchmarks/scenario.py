@@ -44,7 +44,7 @@ choose_gl_backend()
 import mujoco  # noqa: E402
 
 from continuum_sim.configio import replace_path  # noqa: E402
-from continuum_sim.model.cable_path import make_data  # noqa: E402
+from continuum_sim.plant.cable_path import make_data  # noqa: E402
 from continuum_sim.scenario.config import ScenarioConfig  # noqa: E402
 from continuum_sim.scenario.metrics import WALL_CLOCK_METRICS  # noqa: E402
 from continuum_sim.scenario.runner import build_run_model, build_scene_model, run_scenario  # noqa: E402

@@ -20,7 +20,7 @@ numbers (``tests/test_control_kernels.py`` compares them on random inputs):
 The BLAS orders were read off this machine's OpenBLAS (AVX-512/FMA kernels); the equality
 tests would show if another platform's kernels summed differently.
 
-Lazy like ``model.friction.kernels``: nothing imports numba until a controller is built.
+Lazy: nothing imports numba until a controller is built.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from numba.extending import intrinsic
 
-from .model.jit import jit_in_place
+from .plant.jit import jit_in_place
 
 _KERNELS: dict[str, Any] = {}
 _DBL_MIN = 2.2250738585072014e-308

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from model_helpers import contacts_on_a_plane
 
-from continuum_sim.model.friction import cable_tendons
+from continuum_sim.plant.cable_routing import cable_tendons
 from continuum_sim.scenario.config import ScenarioConfig, merged
 from continuum_sim.scenario.metric_compare import flatten, is_continuous, mismatches
 from continuum_sim.scenario.metrics import WALL_CLOCK_METRICS

@@ -26,11 +26,11 @@ from ..configio import atomic_write_bytes, atomic_write_text
 from ..controllers import ControlContext, Controller, controller_spec, load_controller
 from ..distances import min_backbone_distances
 from ..limits import check_run_length, check_scenario
-from ..model.cable_path import native_cable_xml, release_data
-from ..model.friction import cable_tendons
 from ..model.handles import SceneHandles
 from ..model.options import model_geometry
 from ..model.state import set_arm_configuration
+from ..plant.cable_path import native_cable_xml, release_data
+from ..plant.cable_routing import cable_tendons
 from ..toolpath import TaskPlan, plan_task
 from . import metrics as met
 from .cable_friction import CableFrictionObserver
@@ -179,8 +179,8 @@ def build_run_model(config: ScenarioConfig) -> tuple[Any, mujoco.MjModel, mujoco
     if config.model.cable_path == "spatial" or not config.model.tendons or config.model.joint == "ball":
         root, model = build_scene_model(config)
         return root, model, model
-    from ..model.cable_path import compile_native
     from ..model.scene import build_scene
+    from ..plant.cable_path import compile_native
 
     root = build_scene(config.arm, config.layout, config.model, config.scene)
     model, spatial = compile_native(root)
@@ -189,7 +189,7 @@ def build_run_model(config: ScenarioConfig) -> tuple[Any, mujoco.MjModel, mujoco
 
 def make_simulation(config: ScenarioConfig, plan: TaskPlan, model: mujoco.MjModel, controller: Controller) -> Simulation:
     """The run's state: both arms in the plan's first configuration, ids resolved, controller context."""
-    from ..model.cable_path import make_data
+    from ..plant.cable_path import make_data
 
     geometry = model_geometry(config.arm, config.model)
     data = make_data(model)  # registered with the native cable path when the model has one

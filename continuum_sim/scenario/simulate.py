@@ -588,7 +588,7 @@ _KERNELS: list[Any] = []
 def _kernels() -> list[Any]:
     """[``_contact_sums``, ``_health_code``] compiled by numba (or loaded from its cache) on first use."""
     if not _KERNELS:
-        from ..model.jit import jit_in_place, sigint_deferred
+        from ..plant.jit import jit_in_place, sigint_deferred
 
         with sigint_deferred():
             jit_in_place(globals(), ("_block_sum", "_pairwise_sum", "_contact_sums", "_health_code"))

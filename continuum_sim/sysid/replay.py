@@ -47,7 +47,7 @@ class Prediction:
 
 
 def _friction_of(config: ScenarioConfig):
-    """The config's cable friction when it acts (μ > 0), else None (model/friction.py)."""
+    """The config's cable friction when it acts (μ > 0), else None (plant/friction.py)."""
     friction = getattr(config.model, "cable_friction", None)
     return friction if friction is not None and friction.mu > 0.0 else None
 
@@ -64,7 +64,7 @@ def _rollout_sampled(plants: list[ReplayModel], controls: list[Array], sample_st
     datas = [mujoco.MjData(models[0]) for _ in range(max(1, min(nthread, len(models))))]
     handle = None
     if friction is not None:
-        from ..model.friction import install_cable_friction
+        from ..plant.friction import install_cable_friction
 
         if len(models) != 1:
             raise ValueError("cable friction: one model per rollout call")
