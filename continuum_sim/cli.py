@@ -493,6 +493,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_validate_parser(sub)
 
+    from .params.cli import add_params_parser  # `params`: the parameter registry (docs/parameters.md)
+
+    add_params_parser(sub)
+
     view = sub.add_parser("view", help="open the scene in MuJoCo's interactive viewer (needs a display)")
     view.add_argument("--config", help="scenario TOML file")
     view.set_defaults(func=_cmd_view)
