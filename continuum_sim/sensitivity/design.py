@@ -54,7 +54,7 @@ def sample_params(spec: SensitivitySpec, matrix: np.ndarray) -> list[tuple[tuple
     return [tuple((f.path, f.value(u)) for f, u in zip(spec.factors, row)) for row in matrix]
 
 
-def outputs(spec: SensitivitySpec, rows: list[dict[str, Any] | None], metric: str) -> np.ndarray:
+def outputs(rows: list[dict[str, Any] | None], metric: str) -> np.ndarray:
     """One metric per sample row; NaN where missing. A failed evaluation did not complete the task (0)."""
     y = np.full(len(rows), np.nan)
     for i, record in enumerate(rows):

@@ -58,7 +58,7 @@ def write_report(spec: SensitivitySpec, row_ids: list[str], records: dict[str, d
 
     analyses: dict[str, dict[str, Any]] = {}
     for metric in spec.metrics:
-        y = outputs(spec, rows, metric)
+        y = outputs(rows, metric)
         analysis = analyze_morris(spec, matrix, y) if spec.method == "morris" else analyze_sobol(spec, y)
         finite = y[np.isfinite(y)]
         analysis["range"] = [float(finite.min()), float(finite.max())] if finite.size else None
@@ -74,7 +74,7 @@ def write_report(spec: SensitivitySpec, row_ids: list[str], records: dict[str, d
     ranked = sorted(spec.paths, key=lambda p: -ranking[p])
     done = [r for r in rows if r is not None]
     distinct = {vid: records[vid] for vid in set(row_ids) if vid in records}
-    completed = outputs(spec, rows, OUTCOME_METRIC) if OUTCOME_METRIC in spec.metrics else None
+    completed = outputs(rows, OUTCOME_METRIC) if OUTCOME_METRIC in spec.metrics else None
     summary: dict[str, Any] = {
         "kind": "sensitivity",
         "method": spec.method,
@@ -156,14 +156,14 @@ def _plot_outcome_map(spec: SensitivitySpec, values: np.ndarray, rows: list[dict
     import matplotlib.pyplot as plt
 
     i, j = (spec.paths.index(p) for p in pair)
-    completed = outputs(spec, rows, OUTCOME_METRIC)
+    completed = outputs(rows, OUTCOME_METRIC)
     recorded = np.array([r is not None for r in rows])
     n = len(spec.metrics)
     cols = min(n, 3)
     grid_rows = math.ceil(n / cols)
     fig, axes = plt.subplots(grid_rows, cols, figsize=(4.6 * cols, 3.8 * grid_rows), squeeze=False)
     for ax, metric in zip(axes.flat, spec.metrics):
-        y = outputs(spec, rows, metric)
+        y = outputs(rows, metric)
         ok = recorded & np.isfinite(y)
         points = ax.scatter(values[ok, i], values[ok, j], c=y[ok], cmap="viridis", s=36, edgecolors="k", linewidths=0.3)
         failed = recorded & (completed == 0.0) if OUTCOME_METRIC in spec.metrics else np.zeros(len(rows), bool)
