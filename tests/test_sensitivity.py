@@ -150,3 +150,15 @@ def test_tiny_study_end_to_end_and_resume_after_kill(tmp_path):
     changed.write_text(TINY.replace("trajectories = 2", "trajectories = 3"))
     with pytest.raises(ConfigError, match="holds a different sweep"):
         run_study(load_spec(changed), out, workers=1, progress=False)
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in (ROOT / "studies").glob("sensitivity_*.toml")))
+def test_shipped_specs_are_valid(name):
+    """Every shipped study parses, uses registry ranges, and every sample's configuration validates."""
+    from continuum_sim.sensitivity.study import check_samples
+
+    spec = load_spec(ROOT / "studies" / name)
+    assert spec.base.control.mode in ("open", "closed") and spec.evaluation.kind == "scenario"
+    sweep, rows = study_sweep(spec)
+    assert len(rows) >= 28
+    check_samples(sweep, limit=3)  # the study checks every sample before it starts

@@ -18,7 +18,7 @@ from typing import Any, Literal
 from ..configio import ConfigError, to_dict
 from ..sweep import backends
 from ..sweep.runner import preflight
-from ..sweep.spec import SweepSpec, Variant, apply_params, variant_id
+from ..sweep.spec import SweepSpec, Variant, variant_id
 from ..sweep.store import ResultStore
 from .design import sample_matrix, sample_params
 from .spec import SensitivitySpec
@@ -66,13 +66,30 @@ def study_sweep(spec: SensitivitySpec) -> tuple[StudySweep, list[str]]:
     return sweep, row_ids
 
 
-def check_samples(sweep: StudySweep) -> None:
+def _set(data: Any, path: str, value: Any) -> None:
+    *parents, last = path.split(".")
+    for part in parents:
+        data = data[int(part)] if isinstance(data, list) else data[part]
+    if isinstance(data, list):
+        data[int(last)] = value
+    else:
+        data[last] = value
+
+
+def check_samples(sweep: StudySweep, limit: int | None = None) -> None:
     """Every sample's configuration must validate and suit the evaluation: before any work, naming the first that does not."""
+    import copy
+
+    from ..configio import from_dict
     from ..limits import check_model_geometry, check_scenario
 
-    for variant in sweep.samples:
+    base = to_dict(sweep.base)
+    for variant in sweep.samples[:limit]:
         try:
-            config = apply_params(sweep.base, variant.params)
+            data = copy.deepcopy(base)  # all of a sample's values set in one rebuild (apply_params rebuilds per value)
+            for path, value in variant.params:
+                _set(data, path, value)
+            config = from_dict(type(sweep.base), data)
             if sweep.evaluation.static:
                 check_model_geometry(config)
             else:
