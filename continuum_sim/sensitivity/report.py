@@ -92,15 +92,59 @@ def write_report(spec: SensitivitySpec, row_ids: list[str], records: dict[str, d
         "analysis": analyses,
         "strength": {p: ranking[p] for p in ranked},
         "strongest": ranked[:2],
-        "files": ["samples.csv", "indices.csv", "summary.json", "plots/indices.png", "plots/outcome_map.png"],
+        "files": ["samples.csv", "indices.csv", "summary.json", "summary.md", "plots/indices.png", "plots/outcome_map.png"],
     }
     atomic_write_text(root / "summary.json", json.dumps(summary, indent=1, allow_nan=False, ensure_ascii=False))
+    atomic_write_text(root / "summary.md", summary_markdown(summary))
     plots = root / "plots"
     plots.mkdir(exist_ok=True)
     _plot_indices(spec, analyses, ranked, plots / "indices.png")
     if len(spec.factors) >= 2:
         _plot_outcome_map(spec, values, rows, ranked[:2], plots / "outcome_map.png")
     return summary
+
+
+def summary_markdown(summary: dict[str, Any]) -> str:
+    """The study's indices as markdown tables: one row per parameter (strongest first), one column per metric."""
+    morris = summary["method"] == "morris"
+    metrics = summary["metrics"]
+    lines = [
+        f"{summary['method']} study, {summary['control_mode']} loop, {summary['evaluation']['kind']}: "
+        f"{summary['rows_recorded']}/{summary['rows']} rows recorded, {summary['failed']} failed evaluations, "
+        f"task completed in {_pct(summary.get('completed_fraction'))} of the samples, {summary['cpu_s_total']:.0f} s CPU.",
+        "",
+        ("μ* ± 95 % (σ) per metric: the mean absolute elementary effect, i.e. the metric's change per full (log) range "
+          "of the parameter, measured over steps of 2/3 of that range (4 levels); σ large against μ*: nonlinear or interacting"
+         if morris else "S_T (S1) per metric: the parameter's total (first-order) share of the metric's variance"),
+        "",
+        "| parameter | range | strength | " + " | ".join(f"`{m}`" for m in metrics) + " |",
+        "|---|---|---|" + "---|" * len(metrics),
+    ]
+    ranges = {p["path"]: p for p in summary["parameters"]}
+    for path, share in summary["strength"].items():
+        r = ranges[path]
+        cells = []
+        for m in metrics:
+            indices = summary["analysis"][m].get("indices")
+            if not indices:
+                cells.append("–")
+                continue
+            v = indices[path]
+            if morris:
+                cells.append(f"{_g(v['mu_star'])} ± {_g(v['mu_star_conf'])} ({_g(v['sigma'])})")
+            else:
+                cells.append(f"{_g(v['ST'])} ({_g(v['S1'])})")
+        low, high = r["range"]
+        lines.append(f"| `{path}` | {low:g} – {high:g}{' log' if r['log'] else ''} | {share:.2f} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _g(value: float | None) -> str:
+    return "–" if value is None else f"{value:.3g}"
+
+
+def _pct(value: float | None) -> str:
+    return "–" if value is None else f"{100 * value:.0f} %"
 
 
 def _short(path: str) -> str:
