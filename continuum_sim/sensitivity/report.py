@@ -200,6 +200,13 @@ def _plot_outcome_map(spec: SensitivitySpec, values: np.ndarray, rows: list[dict
     import matplotlib.pyplot as plt
 
     i, j = (spec.paths.index(p) for p in pair)
+    xy = values[:, [i, j]].copy()
+    if spec.method == "morris":  # Morris points sit on a grid and repeat in projection: spread them a little to show each
+        rng = np.random.default_rng(0)
+        for c, factor in enumerate((spec.factors[i], spec.factors[j])):
+            lo, hi = factor.bounds
+            shift = rng.uniform(-0.025, 0.025, len(xy)) * (hi - lo)
+            xy[:, c] = xy[:, c] * 10.0**shift if factor.log else xy[:, c] + shift
     completed = outputs(rows, OUTCOME_METRIC)
     recorded = np.array([r is not None for r in rows])
     n = len(spec.metrics)
@@ -209,10 +216,10 @@ def _plot_outcome_map(spec: SensitivitySpec, values: np.ndarray, rows: list[dict
     for ax, metric in zip(axes.flat, spec.metrics):
         y = outputs(rows, metric)
         ok = recorded & np.isfinite(y)
-        points = ax.scatter(values[ok, i], values[ok, j], c=y[ok], cmap="viridis", s=36, edgecolors="k", linewidths=0.3)
+        points = ax.scatter(xy[ok, 0], xy[ok, 1], c=y[ok], cmap="viridis", s=70, edgecolors="k", linewidths=0.3)
         failed = recorded & (completed == 0.0) if OUTCOME_METRIC in spec.metrics else np.zeros(len(rows), bool)
         if failed.any():
-            ax.scatter(values[failed, i], values[failed, j], marker="x", c="red", s=40, label="not completed")
+            ax.scatter(xy[failed, 0], xy[failed, 1], marker="x", c="red", s=16, linewidths=1.0, label="not completed")
             ax.legend(fontsize=7, loc="best")
         if ok.any():
             fig.colorbar(points, ax=ax).ax.tick_params(labelsize=7)
@@ -225,5 +232,6 @@ def _plot_outcome_map(spec: SensitivitySpec, values: np.ndarray, rows: list[dict
         ax.tick_params(labelsize=7)
     for ax in axes.flat[n:]:
         ax.axis("off")
-    fig.suptitle("outcome over the two strongest parameters (every sample; x: task not completed)", fontsize=10)
+    spread = "; Morris grid points spread by ±2.5 % of the range" if spec.method == "morris" else ""
+    fig.suptitle(f"outcome over the two strongest parameters (every sample; x: task not completed{spread})", fontsize=10)
     atomic_write_figure(fig, path)
