@@ -162,3 +162,15 @@ def test_shipped_specs_are_valid(name):
     sweep, rows = study_sweep(spec)
     assert len(rows) >= 28
     check_samples(sweep, limit=3)  # the study checks every sample before it starts
+
+
+def test_bad_out_is_refused_before_work(tmp_path, capsys):
+    from continuum_sim.cli import main
+
+    spec = tmp_path / "tiny.toml"
+    spec.write_text(TINY)
+    afile = tmp_path / "a_file"
+    afile.write_text("x")
+    assert main(["sensitivity", str(spec), "--out", str(afile)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--out" in err and "not a folder" in err

@@ -576,10 +576,11 @@ def cmd_validate(args) -> int:
         raise ConfigError("--only", f"unknown check(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
     from ..configio import check_output_dir
 
-    out = Path(args.out or (QUICK_OUT if args.quick else FULL_OUT))
+    text = args.out if args.out is not None else (QUICK_OUT if args.quick else FULL_OUT)
+    check_output_dir(text, create=False)  # a bad --out is refused before minutes of checks
+    out = Path(text)
     if (args.quick or args.only) and out.resolve() == COMMITTED_REPORT:
         raise ConfigError("--out", f"{args.out} holds the committed full report; a partial run (--quick, --only) writes elsewhere")
-    check_output_dir(out, create=False)  # a bad --out is refused before minutes of checks
     report = run_checks(args.quick, args.only, progress=lambda msg: print(msg, file=sys.stderr))
     paths = write_report(report, out, plots=not args.no_plots)
     print(report.markdown(), end="")
