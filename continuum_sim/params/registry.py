@@ -209,7 +209,11 @@ _ENTRIES: list[Parameter] = [
     Parameter("plan.cut_speed", "feed along the kerf", "m/s", "assumed",
               "slow feed on the cut (paper §5.2 gives no figure)", (0.0025, 0.01)),
     Parameter("plan.fast_speed", "tool speed off the cut (approach, carry, return)", "m/s", "assumed",
-              "the gripper's approach speed; the paper gives no figure", (0.02, 0.06)),
+              "Cartesian moves off the cut; the gripper's final grasp move runs at half of it; the paper gives no figure",
+              (0.02, 0.06)),
+    Parameter("plan.joint_speed_deg_s", "joint-space transfer speed (bending coordinates, per section)", "deg/s", "assumed",
+              "the transfers between key poses, e.g. the gripper's move to its pre-grasp pose; the paper gives no figure",
+              (10.0, 40.0)),
 ]
 
 REGISTRY: tuple[Parameter, ...] = tuple(_ENTRIES)
