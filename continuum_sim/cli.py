@@ -516,6 +516,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_sensitivity_parser(sub)
 
+    from .optimize.cli import add_optimize_parser  # `optimize`: design optimisation (docs/optimize.md)
+
+    add_optimize_parser(sub)
+
     view = sub.add_parser("view", help="open the scene in MuJoCo's interactive viewer (needs a display)")
     view.add_argument("--config", help="scenario TOML file")
     view.set_defaults(func=_cmd_view)

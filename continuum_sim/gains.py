@@ -51,14 +51,15 @@ from .geometry import ArmGeometry
 Array = NDArray[np.float64]
 
 
-def section_flexure_stiffness(geometry: ArmGeometry, scale: float = 1.0) -> Array:
-    """(n_sections,) bending stiffness of each section in its bending coordinates (N·m/rad).
+def section_flexure_stiffness(geometry: ArmGeometry, scale: float | Array = 1.0) -> Array:
+    """(n_sections,) bending stiffness of each section in its bending coordinates (N·m/rad); ``scale``: one or per section.
 
     n joints in series of per-joint stiffness k_j = n·EI/L each carry θ/n: K = k_j/n = EI/L.
     """
     from .model.stiffness import joint_stiffness
 
-    return np.array([joint_stiffness(geometry, s, 1, scale) for s in range(geometry.n_sections)])
+    scales = np.broadcast_to(np.asarray(scale, dtype=float), (geometry.n_sections,))
+    return np.array([joint_stiffness(geometry, s, 1, float(scales[s])) for s in range(geometry.n_sections)])
 
 
 def cable_moment_arms(geometry: ArmGeometry, w: Array | None = None, h: float = 1e-6) -> Array:
@@ -75,7 +76,7 @@ def cable_moment_arms(geometry: ArmGeometry, w: Array | None = None, h: float = 
 
 
 def stiffness_matrices(
-    geometry: ArmGeometry, cable_k: Array, scale: float = 1.0, w: Array | None = None
+    geometry: ArmGeometry, cable_k: Array, scale: float | Array = 1.0, w: Array | None = None
 ) -> tuple[Array, Array]:
     """(K_flex, K_cab), each (2n, 2n) in bending coordinates (N·m/rad)."""
     k_flex = np.repeat(section_flexure_stiffness(geometry, scale), 2)
@@ -84,13 +85,13 @@ def stiffness_matrices(
     return np.diag(k_flex), A.T @ (k[:, None] * A)
 
 
-def transmission(geometry: ArmGeometry, cable_k: Array, scale: float = 1.0, w: Array | None = None) -> Array:
+def transmission(geometry: ArmGeometry, cable_k: Array, scale: float | Array = 1.0, w: Array | None = None) -> Array:
     """R = (K_flex + K_cab)⁻¹ K_cab: achieved bend per commanded bend, statically (2n × 2n)."""
     k_flex, k_cab = stiffness_matrices(geometry, cable_k, scale, w)
     return np.asarray(np.linalg.solve(k_flex + k_cab, k_cab), dtype=float)
 
 
-def inverse_transmission(geometry: ArmGeometry, cable_k: Array, scale: float = 1.0, w: Array | None = None) -> Array:
+def inverse_transmission(geometry: ArmGeometry, cable_k: Array, scale: float | Array = 1.0, w: Array | None = None) -> Array:
     """R⁻¹ = I + K_cab⁻¹ K_flex (2n × 2n)."""
     k_flex, k_cab = stiffness_matrices(geometry, cable_k, scale, w)
     return np.eye(len(k_flex)) + np.linalg.solve(k_cab, k_flex)
@@ -213,7 +214,7 @@ def plant_gain(
     from .model.cable_elasticity import cable_stiffness
 
     k = cable_stiffness(geometry, options) if cable_k is None else np.asarray(cable_k, dtype=float)
-    scale = options.stiffness_scale
+    scale = np.array([options.section_scale(i) for i in range(len(geometry.sections))])  # per section (broadcasts)
     r_inv = inverse_transmission(geometry, k, scale)
     rho = np.sort(np.linalg.eigvals(np.linalg.inv(r_inv)).real)
     modes = arm_modes(geometry, options, pretension, tool_mass, tool_length)
