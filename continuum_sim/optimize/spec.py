@@ -303,7 +303,7 @@ def _robustness(data: dict[str, Any]) -> Robustness:
     raw = _table(data, "robustness", ("samples", "parameters", "ranges", "min_success"))
     if not raw:
         return Robustness()
-    samples = raw.get("samples")
+    samples: Any = raw.get("samples")
     require_int("robustness.samples", samples, 1, MAX_SAMPLES)
     names = raw.get("parameters")
     if not isinstance(names, list) or not names:

@@ -1,0 +1,197 @@
+"""Design optimisation (issue 28): spec errors, per-section stiffness, seeded trials, kill and resume, robust aggregation."""
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from continuum_sim import ConfigError
+from continuum_sim.optimize import load_spec, parse_spec, run_study
+from continuum_sim.optimize.report import dominates, pareto_indices
+from continuum_sim.optimize.study import aggregate
+from continuum_sim.scenario.config import ScenarioConfig, merged
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# A cheap evaluation (the open-loop gravity hold, ~0.1 s CPU): stiffness x300 makes the hinge springs diverge at the step
+# (tests/test_sweep_resume.py), so the upper part of the range gives failed designs the study must record and survive.
+SPEC = """\
+[variables]
+"model.stiffness_scale" = {low = 0.25, high = 400.0, log = true}
+"control.pretension" = {low = 15.0, high = 50.0}
+
+[[objectives]]
+metric = "sag_mm"
+
+[[objectives]]
+metric = "max_cable_tension_n"
+direction = "minimize"
+
+[optimizer]
+sampler = "nsga2"
+trials = 12
+batch = 4
+seed = 3
+
+[evaluation]
+kind = "gravity_sag"
+settle_s = 0.5
+"""
+
+
+def write(tmp_path: Path, text: str = SPEC, name: str = "study.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def trial_rows(folder: Path) -> list[dict[str, str]]:
+    with (folder / "trials.csv").open() as fh:
+        return list(csv.DictReader(fh))
+
+
+def designs(folder: Path) -> list[tuple[str, str, str, str]]:
+    return [(r["trial"], r["model.stiffness_scale"], r["control.pretension"], r["sag_mm"]) for r in trial_rows(folder)]
+
+
+def audit(folder: Path) -> list[dict]:
+    return [json.loads(line) for line in (folder / "evaluations.jsonl").read_text().splitlines() if line.strip()]
+
+
+@pytest.mark.parametrize(
+    "edit, field",
+    [
+        (lambda s: s.replace('low = 0.25, high = 400.0', 'low = 400.0, high = 0.25'), "variables.model.stiffness_scale"),
+        (lambda s: s.replace('"control.pretension"', '"control.no_such_field"'), "variables.control.no_such_field"),
+        (lambda s: s.replace('metric = "sag_mm"', 'metric = "nonsense"'), "objectives[0].metric"),
+        (lambda s: s.replace('direction = "minimize"', 'direction = "down"'), "objectives[1].direction"),
+        (lambda s: s.replace('sampler = "nsga2"', 'sampler = "cmaes"'), "optimizer.sampler"),
+        (lambda s: s.replace("trials = 12", "trials = 0"), "optimizer.trials"),
+        (lambda s: s + '\n[robustness]\nsamples = 2\nparameters = ["model.cable_friction.mu"]\nmin_success = 0.5\n', "robustness.min_success"),
+        (lambda s: s + '\n[robustness]\nsamples = 2\nparameters = ["arm.sections.0.length"]\n', "robustness.parameters[0]"),
+    ],
+)
+def test_spec_errors_name_the_field_and_what_it_allows(tmp_path, edit, field):
+    with pytest.raises(ConfigError) as info:
+        load_spec(write(tmp_path, edit(SPEC)))
+    assert info.value.field.endswith(field), info.value
+
+
+def test_cli_spec_error_is_one_line_and_exit_2(tmp_path, capsys):
+    from continuum_sim.cli import main
+
+    path = write(tmp_path, SPEC.replace("batch = 4", "batch = 1"))  # NSGA-II needs a population of 2 or more
+    assert main(["optimize", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "optimizer.batch" in err[0] and "2 <= batch <= 1024" in err[0], err
+    assert not (tmp_path / "out").exists()
+
+
+def test_section_stiffness_scale_multiplies_each_section_and_must_match_the_section_count():
+    from continuum_sim.limits import check_scenario
+    from continuum_sim.scenario.runner import build_scene_model
+
+    def stiffness(**model):
+        config = merged(ScenarioConfig.default(), {"model": model})
+        return build_scene_model(config)[1].jnt_stiffness.copy()
+
+    base, uniform, scaled = stiffness(), stiffness(stiffness_scale=2.0), stiffness(section_stiffness_scale=[2.0, 2.0, 2.0])
+    np.testing.assert_array_equal(uniform, scaled)  # (2, 2, 2) is stiffness_scale = 2
+    middle = stiffness(section_stiffness_scale=[1.0, 3.0, 1.0])
+    changed = np.flatnonzero(~np.isclose(middle, base))
+    assert changed.size > 0 and np.allclose(middle[changed], 3.0 * base[changed])
+    assert 0 < changed.size < np.count_nonzero(base)  # the middle sections' hinges only, not the others
+    with pytest.raises(ConfigError, match="one factor per arm section"):
+        check_scenario(merged(ScenarioConfig.default(), {"model": {"section_stiffness_scale": [1.0, 2.0]}}))
+
+
+def test_same_seed_same_trials_any_worker_count_and_failures_recorded(tmp_path):
+    spec = load_spec(write(tmp_path))
+    one = run_study(spec, tmp_path / "w1", workers=1, progress=False)
+    two = run_study(spec, tmp_path / "w2", workers=2, progress=False)
+    assert designs(tmp_path / "w1") == designs(tmp_path / "w2")  # parameters and metrics, trial by trial
+    distinct = {d[1:3] for d in designs(tmp_path / "w1")}  # NSGA-II may propose a design again: its evaluation is reused
+    assert one.n_trials == two.n_trials == 12 and one.n_evaluated == len(distinct) and one.n_evaluated + one.n_reused == 12
+    rows = trial_rows(tmp_path / "w1")
+    failed = [r for r in rows if r["state"] == "FAIL"]
+    assert failed and all(r["failure"].startswith("diverged") for r in failed)  # named, and the study went on
+    assert all(float(r["model.stiffness_scale"]) > 16 for r in failed)
+    other = run_study(load_spec(write(tmp_path, SPEC.replace("seed = 3", "seed = 4"), "other.toml")), tmp_path / "s4", workers=2, progress=False)
+    assert other.n_trials == 12 and designs(tmp_path / "s4") != designs(tmp_path / "w1")
+    summary = json.loads((tmp_path / "w1" / "summary.json").read_text())
+    front = [[b["values"]["sag_mm"], b["values"]["max_cable_tension_n"]] for b in summary["best"]]
+    done = [[float(r["sag_mm"]), float(r["max_cable_tension_n"])] for r in rows if r["state"] == "COMPLETE"]
+    assert front and not any(dominates(p, f, ["minimize", "minimize"]) for p in done for f in front)
+    for best in summary["best"]:  # runnable scenario files with the design in them
+        config = ScenarioConfig.from_toml(tmp_path / "w1" / best["config"])
+        assert config.model.stiffness_scale == pytest.approx(best["params"]["model.stiffness_scale"])
+    assert (tmp_path / "w1" / "plots" / "pareto.png").stat().st_size > 10_000
+
+
+def test_killed_study_resumes_to_the_same_trials_without_evaluating_twice(tmp_path):
+    text = SPEC.replace("trials = 12", "trials = 16").replace("settle_s = 0.5", "settle_s = 2.0")
+    path = write(tmp_path, text)
+    out = tmp_path / "killed"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    cmd = [sys.executable, "-m", "continuum_sim", "optimize", str(path), "--out", str(out), "--workers", "2", "--quiet"]
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 180
+    try:
+        while time.monotonic() < deadline and proc.poll() is None:
+            if (out / "evaluations.jsonl").exists() and len(audit(out)) >= 6:
+                break
+            time.sleep(0.02)
+        assert proc.poll() is None, "the study finished before it could be killed"
+        os.killpg(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait(timeout=30)
+    before = len(audit(out))
+    assert 6 <= before < 16
+
+    resumed = run_study(load_spec(path), out, workers=2, progress=False)
+    lines = audit(out)
+    ids = [line["variant_id"] for line in lines]
+    distinct = {d[1:3] for d in designs(out)}
+    assert len(ids) == len(set(ids)) == len(distinct)  # every distinct design evaluated exactly once over both runs
+    assert resumed.n_evaluated == len(distinct) - before and resumed.n_trials == 16
+    rows = trial_rows(out)
+    assert [r["trial"] for r in rows] == [str(i) for i in range(16)] and all(r["state"] in ("COMPLETE", "FAIL") for r in rows)
+    reference = run_study(load_spec(path), tmp_path / "reference", workers=2, progress=False)  # uninterrupted, same seed
+    assert reference.n_trials == 16 and designs(out) == designs(tmp_path / "reference")
+
+
+def test_robust_aggregation_success_probability_quantile_and_failures():
+    text = SPEC.replace('metric = "sag_mm"', 'metric = "success_probability"').replace(
+        'metric = "max_cable_tension_n"\ndirection = "minimize"', 'metric = "sag_mm"\naggregate = "quantile"\nq = 0.5'
+    ) + '\n[constraints.metrics]\n"sag_mm" = {max = 10.0}\n\n[robustness]\nsamples = 4\nparameters = ["model.cable_friction.mu"]\nmin_success = 0.5\n'
+    spec = parse_spec(__import__("tomllib").loads(text))
+    assert spec.directions == ["maximize", "minimize"]
+    records = [
+        {"status": "ok", "metrics": {"sag_mm": 5.0}, "error": None},
+        {"status": "ok", "metrics": {"sag_mm": 12.0}, "error": None},
+        {"status": "ok", "metrics": {"sag_mm": 7.0}, "error": None},
+        {"status": "failed", "metrics": {}, "error": "diverged: qacc"},
+    ]
+    out = aggregate(spec, records)
+    assert out["success_probability"] == 0.5  # 5 and 7 hold; 12 breaks the bound; the failed sample is no success
+    assert out["values"] == [0.5, 7.0]  # median over the evaluations that ran
+    assert out["constraints"] == [0.0] and out["failures"] == ["diverged: qacc"]
+    assert aggregate(spec, records[1:2] + records[3:])["constraints"] == [0.5]  # p = 0 < 0.5: infeasible by 0.5
+    assert aggregate(spec, records[3:])["values"] is None  # nothing ran: the design fails with its named reason
+
+
+def test_pareto_indices_against_brute_force():
+    rng = np.random.default_rng(0)
+    points = rng.integers(0, 6, size=(40, 2)).astype(float).tolist()
+    directions = ["minimize", "maximize"]
+    keep = set(pareto_indices(points, directions))
+    for i, (a0, a1) in enumerate(points):
+        dominated = any(b0 <= a0 and b1 >= a1 and (b0 < a0 or b1 > a1) for b0, b1 in points)
+        assert (i in keep) == (not dominated)
