@@ -62,7 +62,7 @@ def designs(folder: Path) -> list[tuple[str, str, str, str]]:
 
 
 def audit(folder: Path) -> list[dict]:
-    return [json.loads(line) for line in (folder / "evaluations.jsonl").read_text().splitlines() if line.strip()]
+    return [json.loads(line) for line in (folder / "evaluations" / "log.jsonl").read_text().splitlines() if line.strip()]
 
 
 @pytest.mark.parametrize(
@@ -145,7 +145,7 @@ def test_killed_study_resumes_to_the_same_trials_without_evaluating_twice(tmp_pa
     deadline = time.monotonic() + 180
     try:
         while time.monotonic() < deadline and proc.poll() is None:
-            if (out / "evaluations.jsonl").exists() and len(audit(out)) >= 6:
+            if (out / "evaluations" / "log.jsonl").exists() and len(audit(out)) >= 6:
                 break
             time.sleep(0.02)
         assert proc.poll() is None, "the study finished before it could be killed"

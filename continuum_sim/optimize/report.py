@@ -1,6 +1,6 @@
 """A design study's report, rebuilt from the journal and the records after every run.
 
-Layout (beside the sweep store's ``records/`` and the Optuna ``study.journal``)::
+Layout (beside the Optuna ``study.journal`` and the evaluations' store ``evaluations/``)::
 
     <out>/trials.csv        one row per trial: design, objectives, success probability, constraints, failure
     <out>/pareto.csv        the feasible non-dominated designs (the best one for a single objective)

@@ -1,9 +1,10 @@
 """Run a design study: Optuna asks for designs, the sweep machinery evaluates them, the study resumes.
 
 Storage: ``<out>/study.journal``, an Optuna journal file (every ask, parameter and tell
-appended as it happens), next to the sweep store's records (``records/<id>.json``, one per
-finished evaluation, written atomically by the driver) and ``evaluations.jsonl`` (one line
-per evaluation run, the audit trail of "no evaluation twice").
+appended as it happens), and ``<out>/evaluations/``, the sweep store of the evaluations
+(``sweep.json`` the study's identity, which refuses a different study; ``records/<id>.json``
+one per finished evaluation, written atomically by the driver; ``log.jsonl`` one line per
+evaluation run, the audit trail of "no evaluation twice"). The report files sit at the top.
 
 Generations: the study asks ``optimizer.batch`` designs at a time, evaluates them all (each
 design × each robustness sample is one evaluation on the pool), tells Optuna each design's
@@ -41,7 +42,8 @@ from .spec import SUCCESS, OptimizeSpec
 Backend = Literal["local", "ray"]
 STUDY_NAME = "optimize"
 JOURNAL = "study.journal"
-AUDIT = "evaluations.jsonl"
+EVALUATIONS = "evaluations"  # the sweep store's folder inside the study folder
+AUDIT = "log.jsonl"  # in it
 
 
 @dataclass(frozen=True)
@@ -180,12 +182,15 @@ def run_study(
         backends.probe_address(address)
     sweep = study_sweep(spec)
     samples = robustness_samples(spec)
-    store = ResultStore(out)
+    root = Path(out)
+    if root.exists() and not (root / EVALUATIONS / "sweep.json").exists() and any(not p.name.startswith(".") and p.name != EVALUATIONS for p in root.iterdir()):
+        raise ConfigError("--out", f"{root} exists and is not a study folder; use another --out")
+    store = ResultStore(root / EVALUATIONS)
     budget = spec.optimizer.trials
     with store.lock():
         store.prepare(sweep)
         records = store.load()
-        study = open_study(spec, store.root)
+        study = open_study(spec, root)
         running = optuna.trial.TrialState.RUNNING
         n_resumed = sum(1 for t in study.get_trials(deepcopy=False) if t.state == running)
         told = sum(1 for t in study.get_trials(deepcopy=False) if t.state.is_finished())
@@ -209,9 +214,9 @@ def run_study(
         finally:
             bar.close()
         trials = study.get_trials(deepcopy=False)
-        summary = write_report(spec, trials, records, store.root)
+        summary = write_report(spec, trials, records, root)
     n_failed = sum(1 for t in trials if t.state == optuna.trial.TrialState.FAIL)
-    return StudyResult(store.root, len(trials), n_resumed, counts["run"], counts["reused"], n_failed, summary)
+    return StudyResult(root, len(trials), n_resumed, counts["run"], counts["reused"], n_failed, summary)
 
 
 def _generation(spec: OptimizeSpec, study: Any, open_trials: list[Any], samples: list[Params], sweep: StudySweep,
