@@ -80,8 +80,21 @@ def make_sampler(spec: OptimizeSpec, number: int) -> Any:
     if opt.sampler == "cmaes":
         return optuna.samplers.CmaEsSampler(seed=seed, popsize=opt.batch if opt.batch >= 2 else None)
     if opt.sampler == "grid":
-        return optuna.samplers.GridSampler({v.path: v.grid_values() for v in spec.variables}, seed=seed)
+        return _grid_sampler()({v.path: v.grid_values() for v in spec.variables}, seed=seed)
     return optuna.samplers.RandomSampler(seed=seed)
+
+
+def _grid_sampler() -> type:
+    import optuna
+
+    class Grid(optuna.samplers.GridSampler):
+        """Optuna's grid sampler without its ``study.stop()`` once the grid is covered (only allowed inside
+        ``study.optimize``; here the trial budget, at most the grid's size, ends the study)."""
+
+        def after_trial(self, study: Any, trial: Any, state: Any, values: Any) -> None:
+            pass
+
+    return Grid
 
 
 def suggest(spec: OptimizeSpec, trial: Any) -> dict[str, Any]:
