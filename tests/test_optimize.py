@@ -195,3 +195,20 @@ def test_pareto_indices_against_brute_force():
     for i, (a0, a1) in enumerate(points):
         dominated = any(b0 <= a0 and b1 >= a1 and (b0 < a0 or b1 > a1) for b0, b1 in points)
         assert (i in keep) == (not dominated)
+
+
+def test_hypervolume_2d_of_a_staircase_and_with_a_maximised_objective():
+    from continuum_sim.optimize.compare import hypervolume_2d
+
+    assert hypervolume_2d([[1, 3], [2, 2], [3, 1], [3.5, 3.5]], [4, 4], ["minimize", "minimize"]) == pytest.approx(6.0)
+    # maximising the second objective: mirror it
+    assert hypervolume_2d([[1, -3], [2, -2], [3, -1]], [4, -4], ["minimize", "maximize"]) == pytest.approx(6.0)
+
+
+def test_grid_sampler_visits_every_grid_point_once(tmp_path):
+    text = SPEC.replace('high = 400.0, log = true}', 'high = 4.0, log = true, grid = 3}').replace("high = 50.0}", "high = 50.0, grid = 2}")
+    text = text.replace('sampler = "nsga2"', 'sampler = "grid"').replace("trials = 12", "trials = 6").replace("batch = 4", "batch = 3")
+    spec = load_spec(write(tmp_path, text))
+    result = run_study(spec, tmp_path / "grid", workers=2, progress=False)
+    points = {(float(r["model.stiffness_scale"]), float(r["control.pretension"])) for r in trial_rows(tmp_path / "grid")}
+    assert points == {(s, p) for s in (0.25, 1.0, 4.0) for p in (15.0, 50.0)} and result.n_evaluated == 6

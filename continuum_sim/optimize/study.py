@@ -80,7 +80,9 @@ def make_sampler(spec: OptimizeSpec, number: int) -> Any:
     if opt.sampler == "cmaes":
         return optuna.samplers.CmaEsSampler(seed=seed, popsize=opt.batch if opt.batch >= 2 else None)
     if opt.sampler == "grid":
-        return _grid_sampler()({v.path: v.grid_values() for v in spec.variables}, seed=seed)
+        # the study's seed, not the trial's: Optuna's grid sampler shuffles the grid by its seed once and gives trial n
+        # the n-th point, so every trial must see the same shuffle (a per-trial seed repeats points)
+        return _grid_sampler()({v.path: v.grid_values() for v in spec.variables}, seed=opt.seed)
     return optuna.samplers.RandomSampler(seed=seed)
 
 
