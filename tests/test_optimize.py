@@ -212,3 +212,22 @@ def test_grid_sampler_visits_every_grid_point_once(tmp_path):
     result = run_study(spec, tmp_path / "grid", workers=2, progress=False)
     points = {(float(r["model.stiffness_scale"]), float(r["control.pretension"])) for r in trial_rows(tmp_path / "grid")}
     assert points == {(s, p) for s in (0.25, 1.0, 4.0) for p in (15.0, 50.0)} and result.n_evaluated == 6
+
+
+def test_robust_study_end_to_end_success_probability_from_its_samples(tmp_path):
+    text = SPEC.replace('metric = "sag_mm"', 'metric = "success_probability"').replace("trials = 12", "trials = 4")
+    text += '\n[constraints.metrics]\n"sag_mm" = {max = 16.0}\n\n[robustness]\nsamples = 3\nparameters = ["model.rope_modulus"]\nmin_success = 0.5\n'
+    text = text.replace("high = 400.0", "high = 8.0")
+    result = run_study(load_spec(write(tmp_path, text)), tmp_path / "robust", workers=2, progress=False)
+    assert result.n_trials == 4 and result.n_evaluated + result.n_reused == 12
+    records = {p.stem: json.loads(p.read_text()) for p in (tmp_path / "robust" / "evaluations" / "records").glob("*.json")}
+    moduli = {r["params"]["model.rope_modulus"] for r in records.values()}
+    assert len(moduli) == 3  # the same three plants for every design (common random numbers)
+    from continuum_sim.optimize.study import open_study
+
+    for trial in open_study(load_spec(tmp_path / "study.toml"), tmp_path / "robust").get_trials():
+        samples = [records[i] for i in trial.user_attrs["variant_ids"]]
+        held = [r["status"] == "ok" and r["metrics"]["sag_mm"] <= 16.0 for r in samples]
+        assert trial.user_attrs["success_probability"] == pytest.approx(sum(held) / 3)
+        assert trial.values[0] == pytest.approx(sum(held) / 3)
+        assert trial.user_attrs["constraints"] == pytest.approx([0.5 - sum(held) / 3])
