@@ -1,6 +1,6 @@
 """Compare the fronts of two finished design studies of the same objectives (e.g. NSGA-II against a grid).
 
-    python -m continuum_sim.optimize.compare STUDY_A STUDY_B
+    python -m continuum_sim.optimize.compare STUDY_A STUDY_B [PLOT.png]
 
 Reads each folder's ``summary.json`` (objectives, directions) and ``trials.csv`` (feasible
 completed designs) and prints JSON: each front, how many of B's front points some design of A
@@ -70,12 +70,37 @@ def compare(a: Path, b: Path) -> dict[str, Any]:
     return out
 
 
+def plot(a: Path, b: Path, path: Path) -> None:
+    """Both studies' feasible designs and fronts on the first two objectives."""
+    import matplotlib
+
+    matplotlib.use("Agg")  # a file only: never a window, never GL
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    labels: list[str] = []
+    for folder, colour, marker in ((a, "tab:red", "o"), (b, "tab:blue", "s")):
+        labels, directions, points, _ = load(folder)
+        name = json.loads((folder / "summary.json").read_text())["sampler"]
+        ax.scatter([p[0] for p in points], [p[1] for p in points], s=14, c=colour, marker=marker, alpha=0.35, label=f"{name}: {len(points)} feasible")
+        front = sorted(points[i] for i in pareto_indices(points, directions))
+        ax.plot([p[0] for p in front], [p[1] for p in front], "-", marker=marker, c=colour, mfc="none", ms=8, label=f"{name} front ({len(front)})")
+    ax.set_xlabel(labels[0])
+    ax.set_ylabel(labels[1])
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
-    if len(args) != 2:
-        print(__doc__.strip().splitlines()[2].strip(), file=sys.stderr)
+    if len(args) not in (2, 3):
+        print("usage: " + __doc__.strip().splitlines()[2].strip(), file=sys.stderr)
         return 2
     print(json.dumps(compare(Path(args[0]), Path(args[1])), indent=1))
+    if len(args) == 3:
+        plot(Path(args[0]), Path(args[1]), Path(args[2]))
     return 0
 
 
