@@ -61,22 +61,16 @@ def trial_seed(seed: int, number: int) -> int:
     return int(np.random.SeedSequence([seed, number]).generate_state(1)[0] & 0x7FFFFFFF)
 
 
-def constraints_of(trial: Any) -> list[float]:
-    """Optuna's constraints (feasible when every value <= 0), stored on the trial before it is told."""
-    return list(trial.user_attrs.get("constraints", [0.0]))
-
-
 def make_sampler(spec: OptimizeSpec, number: int) -> Any:
     """The sampler for trial ``number``: the spec's kind, seeded from (seed, number)."""
     import optuna
 
     opt, seed = spec.optimizer, trial_seed(spec.optimizer.seed, number)
-    constrained = bool(spec.constraints) and (not spec.robust or spec.robustness.min_success is not None)
-    cfunc = constraints_of if constrained else None
+    # Constraints reach NSGA-II and TPE as each trial's ``set_constraint`` values (``_tell``), read from the storage.
     if opt.sampler == "nsga2":
-        return optuna.samplers.NSGAIISampler(population_size=opt.batch, seed=seed, constraints_func=cfunc)
+        return optuna.samplers.NSGAIISampler(population_size=opt.batch, seed=seed)
     if opt.sampler == "tpe":
-        return optuna.samplers.TPESampler(seed=seed, constraints_func=cfunc, multivariate=True, n_startup_trials=max(opt.batch, 8))
+        return optuna.samplers.TPESampler(seed=seed, multivariate=True, n_startup_trials=max(opt.batch, 8))
     if opt.sampler == "cmaes":
         return optuna.samplers.CmaEsSampler(seed=seed, popsize=opt.batch if opt.batch >= 2 else None)
     if opt.sampler == "grid":
@@ -143,7 +137,12 @@ def aggregate(spec: OptimizeSpec, records: list[dict[str, Any]]) -> dict[str, An
     return {**out, "values": values, "failure": None}
 
 
-def _tell(study: Any, trial_id: int, number: int, outcome: dict[str, Any], variant_ids: list[str]) -> None:
+def constrained(spec: OptimizeSpec) -> bool:
+    """Whether the sampler sees constraints: per evaluation without robustness, the success probability's with it."""
+    return bool(spec.constraints) and (not spec.robust or spec.robustness.min_success is not None)
+
+
+def _tell(spec: OptimizeSpec, study: Any, trial_id: int, number: int, outcome: dict[str, Any], variant_ids: list[str]) -> None:
     import optuna
 
     handle = optuna.trial.Trial(study, trial_id)
@@ -155,7 +154,11 @@ def _tell(study: Any, trial_id: int, number: int, outcome: dict[str, Any], varia
         handle.set_user_attr("failure", outcome["failure"])
         study.tell(number, state=optuna.trial.TrialState.FAIL)
     else:
-        handle.set_user_attr("constraints", outcome["constraints"])
+        handle.set_user_attr("constraints", outcome["constraints"])  # the report's feasibility
+        if constrained(spec):
+            names = ["min_success"] if spec.robust else [f"{i}:{c.metric}" for i, c in enumerate(spec.constraints)]
+            for name, value in zip(names, outcome["constraints"]):
+                handle.set_constraint(name, value)  # feasible when <= 0; NSGA-II and TPE rank infeasible designs last
         study.tell(number, outcome["values"])
 
 
@@ -269,7 +272,7 @@ def _generation(spec: OptimizeSpec, study: Any, open_trials: list[Any], samples:
         for number in sorted(plans):
             trial, ids = plans[number]
             if all(i in records for i in ids):
-                _tell(study, trial._trial_id, number, aggregate(spec, [records[i] for i in ids]), ids)
+                _tell(spec, study, trial._trial_id, number, aggregate(spec, [records[i] for i in ids]), ids)
                 del plans[number]
                 bar.update(1)
 
