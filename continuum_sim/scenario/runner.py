@@ -84,6 +84,7 @@ def run_scenario(
     sim.render_model = render_model
     every = round(1.0 / (config.simulation.record_hz * sim.control_period))
     cutter = CutterObserver(sim, every)
+    sim.cutter = cutter.cutter  # what observers show of the cut (the video's kerf and overlay)
     recorder = Recorder(every, cutter)
     friction = CableFrictionObserver(config.model.cable_friction, recorder.every)  # acts inside mj_step
     hooks: list[Observer] = [cutter, recorder, friction, *observers, HealthCheck()]
