@@ -132,3 +132,12 @@ def test_overview_is_framed_on_the_plate():
     f = 0.5 * h / np.tan(np.radians(model.cam_fovy[cam]) / 2)
     ray = rot @ np.array([0.0, h / 2 - 0.1 * h, -f])  # through the pixel 10 % of the height below the top edge
     assert ray[2] < 0  # looks down at the floor there: at most the top tenth can be sky
+
+
+def test_overlay_option_is_a_checked_boolean():
+    from continuum_sim.configio import ConfigError
+    from continuum_sim.scenario.config import SimulationConfig
+
+    assert SimulationConfig().video_overlay is True  # on by default (docs/video.md)
+    with pytest.raises(ConfigError, match="video_overlay"):
+        SimulationConfig(video_overlay="no")  # type: ignore[arg-type]
