@@ -8,6 +8,11 @@ time. Chunks of snapshots go to render worker processes, each of which owns its 
 result to its final name atomically. Rendering therefore runs beside the physics instead
 of inside the tick loop, and on several cores.
 
+With the cutter's voxel grid (``grid``) each snapshot also carries the kerf band's voxels
+(packed bits, only when they changed) and the workers draw what is left of the band instead
+of its static geoms (``video_foam``), so the cut shows as it is made; overlay lines sent with
+a frame are drawn over it (``video_overlay``). What the video shows: docs/video.md.
+
 Why: software EGL (Mesa llvmpipe on CPU-only machines) spends ~0.1 s per two-camera frame,
 most of it tessellating the 18 cable tendons (measured: 0.088 s vs 0.037 s per view with
 tendons hidden); the default run has ~1,000 frames. ``quality`` lowers MuJoCo's
@@ -107,7 +112,7 @@ class _FrameRenderer:
         self._band = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) for n in kerf.band_geoms], int) \
             if kerf is not None else np.zeros(0, int)
         self._band = self._band[self._band >= 0]
-        # Room for the scene's own geoms and the foam's boxes (at most a few hundred).
+        # Room for the scene's own geoms and the foam's boxes (at most 9 in the default run).
         self.renderer = mujoco.Renderer(model, height, width, max_geom=10000 + 2000 * (kerf is not None))
 
     def render_state(self, state: FrameState) -> np.ndarray:

@@ -18,7 +18,8 @@ import numpy as np
 
 from continuum_sim.scenario.config import ScenarioConfig, merged
 from continuum_sim.scenario.runner import run_scenario
-from continuum_sim.scenario.simulate import Observer, Simulation, overlay_text
+from continuum_sim.scenario.simulate import Observer, Simulation
+from continuum_sim.scenario.video_observer import overlay_text
 
 
 class FrameGrab(Observer):

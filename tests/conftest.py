@@ -38,7 +38,8 @@ def default_run(tmp_path_factory):
     choose_gl_backend()
     from continuum_sim.scenario.config import ScenarioConfig, merged
     from continuum_sim.scenario.runner import run_scenario
-    from continuum_sim.scenario.simulate import Observer, VideoObserver
+    from continuum_sim.scenario.simulate import Observer
+    from continuum_sim.scenario.video_observer import VideoObserver
 
     config = ScenarioConfig.default()
     closeup = merged(config, {"simulation": {"cameras": ["closeup"]}}).simulation

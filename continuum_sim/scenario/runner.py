@@ -42,10 +42,10 @@ from .simulate import (
     ProgressObserver,
     Recorder,
     Simulation,
-    VideoObserver,
     simulate,
 )
 from .trajectory import ArmTrajectory, Trajectory
+from .video_observer import VideoObserver
 
 
 class SimulationDiverged(RuntimeError):
