@@ -142,3 +142,39 @@ class KerfVoxels:
             scene.ngeom += 1
             n += 1
         return n
+
+
+def project_points(model: Any, data: Any, camera: str, points: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Pixel (column, row) of world ``points`` in ``camera`` of a ``width``×``height`` image
+    (MuJoCo's pinhole camera: ``fovy`` vertical, looking along −z; ``data`` after kinematics)."""
+    cam = model.camera(camera).id
+    local = (np.asarray(points, float) - data.cam_xpos[cam]) @ data.cam_xmat[cam].reshape(3, 3)  # x right, y up
+    f = 0.5 * height / np.tan(np.radians(model.cam_fovy[cam]) / 2)
+    return np.stack([width / 2 + f * local[:, 0] / -local[:, 2], height / 2 - f * local[:, 1] / -local[:, 2]], axis=1)
+
+
+def kerf_region(model: Any, camera: str, polyline: np.ndarray, kerf_width: float, width: int, height: int) -> np.ndarray:
+    """Mask (height, width) of the pixels of ``camera`` that show the planned kerf's top face.
+
+    The kerf is ``polyline`` (its centre line at the plate's top, world, m) swept ``kerf_width``
+    wide and half a width past its ends (the cutter's round ends), each leg a rectangle projected
+    at the model's initial state (the close-up rides with the welded sample, which moves < 0.1 mm).
+    To check a video: the cut is visible where these pixels change (tests/test_video_kerf.py,
+    scripts/kerf_visibility.py).
+    """
+    import mujoco
+    from matplotlib.path import Path
+
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    cols, rows = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
+    pixels = np.stack([cols.ravel(), rows.ravel()], axis=1)
+    mask = np.zeros(width * height, bool)
+    line, w = np.asarray(polyline, float), kerf_width / 2
+    for a, b in zip(line[:-1], line[1:]):
+        u = (b - a) / np.linalg.norm(b - a)
+        n = np.array([-u[1], u[0], 0.0])
+        a, b = a - w * u, b + w * u
+        corners = np.array([a - w * n, b - w * n, b + w * n, a + w * n])
+        mask |= Path(project_points(model, data, camera, corners, width, height)).contains_points(pixels)
+    return mask.reshape(height, width)

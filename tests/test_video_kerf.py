@@ -14,44 +14,13 @@ import mujoco  # noqa: E402
 from continuum_sim.model.cutting import FoamGrid  # noqa: E402
 from continuum_sim.scenario.config import ScenarioConfig  # noqa: E402
 from continuum_sim.scenario.runner import build_scene_model  # noqa: E402
-from continuum_sim.video_foam import KerfVoxels  # noqa: E402
+from continuum_sim.video_foam import KerfVoxels, kerf_region, project_points  # noqa: E402
 from continuum_sim.video_overlay import OverlayValues, draw_overlay, overlay_lines  # noqa: E402
 
 # The old video (7a4d7dd: the band drawn as two static boxes) measured 3.5 (of 255) on the same
-# two frames of its close-up (its own camera, same region); the voxel kerf 93 (docs/video.md).
+# two frames of its close-up (its own camera, same region); the voxel kerf 93 (docs/video.md,
+# `python scripts/kerf_visibility.py RUN_DIR` on a `run --video` folder of each commit).
 KERF_CHANGE_MIN = 25.0
-
-
-def _project(model: mujoco.MjModel, data: mujoco.MjData, camera: str, points: np.ndarray, width: int,
-             height: int) -> np.ndarray:
-    """Pixel (column, row) of world ``points`` in ``camera`` (pinhole: MuJoCo's fovy, looking along −z)."""
-    cam = model.camera(camera).id
-    rot = data.cam_xmat[cam].reshape(3, 3)
-    local = (points - data.cam_xpos[cam]) @ rot  # camera frame: x right, y up, −z forward
-    f = 0.5 * height / np.tan(np.radians(model.cam_fovy[cam]) / 2)
-    return np.stack([width / 2 + f * local[:, 0] / -local[:, 2], height / 2 - f * local[:, 1] / -local[:, 2]], axis=1)
-
-
-def kerf_region(config: ScenarioConfig, camera: str, width: int, height: int) -> np.ndarray:
-    """Mask of the pixels showing the planned kerf's top face (both legs, full width) in ``camera``
-    at the scene's initial state (the close-up rides with the welded sample: it moves < 0.1 mm)."""
-    from matplotlib.path import Path
-
-    _, model = build_scene_model(config)
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    plate = config.layout.plate
-    line, w = plate.kerf_polyline(), plate.kerf_width / 2
-    cols, rows = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
-    pixels = np.stack([cols.ravel(), rows.ravel()], axis=1)
-    mask = np.zeros(width * height, bool)
-    for a, b in zip(line[:-1], line[1:]):
-        u = (b - a) / np.linalg.norm(b - a)
-        n = np.array([-u[1], u[0], 0.0])
-        a, b = a - w * u, b + w * u  # the cutter's round ends reach half a width past the vertices
-        corners = np.array([a - w * n, b - w * n, b + w * n, a + w * n])
-        mask |= Path(_project(model, data, camera, corners, width, height)).contains_points(pixels)
-    return mask.reshape(height, width)
 
 
 def test_closeup_shows_the_kerf_being_cut(default_run):
@@ -66,7 +35,9 @@ def test_closeup_shows_the_kerf_being_cut(default_run):
     config = ScenarioConfig.default()
     w, h = config.simulation.video_width, config.simulation.video_height
     assert frames.shape == (5, h, w, 3)  # 0, 12, 24, 36, 48 s
-    region = kerf_region(config, "closeup", w, h)
+    _, model = build_scene_model(config)
+    plate = config.layout.plate
+    region = kerf_region(model, "closeup", plate.kerf_polyline(), plate.kerf_width, w, h)
     assert region.mean() > 0.02  # the kerf is in view and not a sliver
     change = np.abs(frames[3] - frames[1]).mean(axis=2)[region].mean()
     assert change > KERF_CHANGE_MIN, f"kerf region mean change {change:.1f} (of 255)"
@@ -125,7 +96,7 @@ def test_overview_is_framed_on_the_plate():
     plate = config.layout.plate
     x0, y0 = plate.corner_x - plate.size[0], plate.corner_y
     corners = np.array([[x, y, plate.top_z] for x in (x0, plate.corner_x) for y in (y0, y0 + plate.size[1])])
-    px = _project(model, data, "overview", corners, w, h)
+    px = project_points(model, data, "overview", corners, w, h)
     assert np.ptp(np.clip(px[:, 0], 0, w)) >= w / 3
     cam = model.camera("overview").id
     rot = data.cam_xmat[cam].reshape(3, 3)
