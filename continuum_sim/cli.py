@@ -93,6 +93,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         config = merged(config, {"control": {"mode": args.controller, "controller": ""}})
     elif args.controller is not None:
         config = merged(config, {"control": {"controller": args.controller}})
+    if args.no_overlay:
+        config = merged(config, {"simulation": {"video_overlay": False}})
     # Everything that can be refused is refused before the folder is touched.
     from .controllers import controller_spec, load_controller
 
@@ -490,7 +492,9 @@ def build_parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="the main job: run the sample-removal scenario, write a run folder")
     run.add_argument("--config", help="scenario TOML file (overrides the shipped defaults)")
     run.add_argument("--out", default="runs/default", help="run folder (default: runs/default)")
-    run.add_argument("--video", action="store_true", help="render an MP4 off-screen (EGL)")
+    run.add_argument("--video", action="store_true", help="render an MP4 off-screen (EGL); see docs/video.md")
+    run.add_argument("--no-overlay", action="store_true",
+                     help="no text over the video's frames (sets simulation.video_overlay = false)")
     run.add_argument("--control", choices=["open", "closed"], help="open = the paper's method, closed = ours (default: config)")
     run.add_argument("--controller", metavar="MODULE:CLASS",
                      help="your own controller class (continuum_sim.controllers.Controller protocol; "

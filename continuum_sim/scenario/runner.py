@@ -44,10 +44,10 @@ from .simulate import (
     ProgressObserver,
     Recorder,
     Simulation,
-    VideoObserver,
     simulate,
 )
 from .trajectory import ArmTrajectory, Trajectory
+from .video_observer import VideoObserver
 
 
 class SimulationDiverged(RuntimeError):
@@ -94,6 +94,7 @@ def _run(config: ScenarioConfig, out_dir: Path | None, *, video: bool, stages: t
     sim.render_model = render_model
     every = round(1.0 / (config.simulation.record_hz * sim.control_period))
     cutter = CutterObserver(sim, every)
+    sim.cutter = cutter.cutter  # what observers show of the cut (the video's kerf and overlay)
     recorder = Recorder(every, cutter)
     friction = CableFrictionObserver(config.model.cable_friction, recorder.every)  # acts inside mj_step
     hooks: list[Observer] = [cutter, recorder, friction, *observers, HealthCheck()]
