@@ -261,13 +261,14 @@ def jacobian_bending(geometry: ArmGeometry, w: ArrayLike, base: ArrayLike | None
     w = _as_w(geometry, w)
     model = pose_model(geometry, tool_length)
     flat = w.reshape(-1, w.shape[-1])
-    T = np.zeros((len(flat), 4, 4))
-    J = np.empty((len(flat), 6, w.shape[-1]))
+    poses = np.zeros((len(flat), 4, 4))
+    jacobians = np.empty((len(flat), 6, w.shape[-1]))
     R, p = np.empty(9), np.empty(3)
     for i in range(len(flat)):
-        pose_jacobian(model, flat[i], R, p, J[i].reshape(-1), True)
-        T[i, :3, :3], T[i, :3, 3], T[i, 3, 3] = R.reshape(3, 3), p, 1.0
-    T, J = T.reshape(w.shape[:-1] + (4, 4)), J.reshape(w.shape[:-1] + J.shape[-2:])
+        pose_jacobian(model, flat[i], R, p, jacobians[i].reshape(-1), True)
+        poses[i, :3, :3], poses[i, :3, 3], poses[i, 3, 3] = R.reshape(3, 3), p, 1.0
+    T: Array = poses.reshape(w.shape[:-1] + (4, 4))
+    J: Array = jacobians.reshape(w.shape[:-1] + jacobians.shape[-2:])
     if base is None:
         return T, J
     B = np.broadcast_to(_base(base), T.shape)

@@ -5,17 +5,17 @@ left Jacobian), central finite differences of ``kinematics.forward_kinematics_be
 ``kinematics.log_so3``, and the control law written with numpy (``reference_update``).
 """
 
+import kinematics_oracle as oracle
 import numpy as np
 import pytest
+from conftest import random_q
 from scipy.spatial.transform import Rotation
 
-import kinematics_oracle as oracle
 from continuum_sim import kinematics as kin
 from continuum_sim.control import ControlConfig
 from continuum_sim.control.arm import ArmController
 from continuum_sim.control.kernels import plan_sample, rotation_error
 from continuum_sim.kinematics_kernels import ArmPose, cable_lengths, cable_model
-from conftest import random_q
 
 
 def _samples(rng: np.random.Generator, geometry) -> list[np.ndarray]:

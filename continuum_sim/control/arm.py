@@ -134,11 +134,12 @@ class ArmController:
         self._holding = holding
         closed = cfg.mode == "closed" and dt > 0.0
         keep = closed and tensions is not None and cfg.min_tension > 0.0
-        measured = self._no_tensions if tensions is None else np.asarray(tensions, dtype=np.float64)
-        q = np.asarray(q_plan, dtype=np.float64)
-        plan = np.asarray(tcp_plan, dtype=np.float64)
-        pos = np.asarray(tcp_pos, dtype=np.float64)
-        mat = np.asarray(tcp_mat, dtype=np.float64).reshape(3, 3)
+        # C-contiguous float arrays (no copy where they are already): one compiled signature.
+        measured = self._no_tensions if tensions is None else np.ascontiguousarray(tensions, dtype=np.float64)
+        q = np.ascontiguousarray(q_plan, dtype=np.float64)
+        plan = np.ascontiguousarray(tcp_plan, dtype=np.float64)
+        pos = np.ascontiguousarray(tcp_pos, dtype=np.float64)
+        mat = np.ascontiguousarray(tcp_mat, dtype=np.float64).reshape(3, 3)
         lengths = np.empty(len(self.offset))
         args = (self.law, state, q, plan, pos, mat, float(dt), closed, keep, measured, self._r)
         if tick(*args, False, lengths) == ROTATION_BEYOND_3_RAD:  # the robust log, then the same tick

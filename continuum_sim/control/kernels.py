@@ -15,7 +15,7 @@ fields (named tuples of arrays and numbers in numba). The tick:
 4. the set-points: the shape's cable lengths less the pre-tension offset and the common
    mode (``set_points``).
 
-Tested against the law written with vectorised numpy (``tests/test_control.py``) within
+Tested against the law written with vectorised numpy (``tests/test_control_kernels.py``) within
 1e-12 m. ``plan_sample`` interpolates the plan at the tick's time (``controllers.plan_at``).
 """
 
