@@ -256,7 +256,7 @@ def jacobian_bending(geometry: ArmGeometry, w: ArrayLike, base: ArrayLike | None
     that ``base`` maps into (the arm base frame by default). Each configuration is one call
     of the compiled ``kinematics_kernels.pose_jacobian`` (numba, loaded on first use).
     """
-    from .kinematics_kernels import pose_jacobian, pose_model
+    from .kinematics_kernels import model_pose_jacobian, pose_model
 
     w = _as_w(geometry, w)
     model = pose_model(geometry, tool_length)
@@ -265,7 +265,7 @@ def jacobian_bending(geometry: ArmGeometry, w: ArrayLike, base: ArrayLike | None
     jacobians = np.empty((len(flat), 6, w.shape[-1]))
     R, p = np.empty(9), np.empty(3)
     for i in range(len(flat)):
-        pose_jacobian(model, flat[i], R, p, jacobians[i].reshape(-1), True)
+        model_pose_jacobian(model, flat[i], R, p, jacobians[i].reshape(-1), True)
         poses[i, :3, :3], poses[i, :3, 3], poses[i, 3, 3] = R.reshape(3, 3), p, 1.0
     T: Array = poses.reshape(w.shape[:-1] + (4, 4))
     J: Array = jacobians.reshape(w.shape[:-1] + jacobians.shape[-2:])
@@ -300,15 +300,14 @@ def cable_lengths_bending(geometry: ArmGeometry, w: ArrayLike) -> Array:
     Each configuration is one call of the compiled ``kinematics_kernels.cable_lengths``
     (numba, loaded on first use), the control tick's own kernel.
     """
-    from .kinematics_kernels import cable_lengths as lengths
-    from .kinematics_kernels import cable_model
+    from .kinematics_kernels import cable_model, model_cable_lengths
 
     w = _as_w(geometry, w)
     model = cable_model(geometry)
     flat = w.reshape(-1, w.shape[-1])
     out = np.empty((len(flat), 3 * geometry.n_sections))
     for i in range(len(flat)):
-        lengths(model, flat[i], out[i])
+        model_cable_lengths(model, flat[i], out[i])
     return out.reshape(w.shape[:-1] + (out.shape[-1],))
 
 

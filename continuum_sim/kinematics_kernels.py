@@ -10,7 +10,8 @@ The pose uses the closed form of the section-end sum ``Σ c_j e^{ijθ/n} = cot(�
 i(1 - cos θ))``, written with ``sinc`` so that it stays finite at θ = 0:
 ``x/θ = (L/2) cos a sinc²(θ/2)/sinc a``, ``z = L cos a sinc θ/sinc a``, ``a = θ/2n``.
 Frames: the arm base frame (no mount transform). Geometry lives in typed records
-(``PoseModel``, ``CableModel``: named fields, passed to numba as named tuples).
+(``pose_dtype``, ``cable_dtype``: numpy structured dtypes with named fields; Python passes
+the (1,) record arrays of ``pose_model``/``cable_model`` to ``model_pose_jacobian``/``model_cable_lengths``).
 
 Importing this module imports numba (compiled on first call, cached on disk); modules a
 configuration loads import it when a solver or controller is built.
@@ -19,7 +20,7 @@ configuration loads import it when a solver or controller is built.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -28,51 +29,53 @@ from numpy.typing import ArrayLike, NDArray
 from .geometry import ArmGeometry
 
 Array = NDArray[np.float64]
-IntArray = NDArray[np.int64]
+Record = Any  # one record of a structured array (pose_dtype / cable_dtype): numba reads its fields as attributes
 
 # nopython, cached on disk, no fast-math (IEEE arithmetic as written), releases the GIL.
 jit = njit(cache=True, fastmath=False, nogil=True)
 
 
-class PoseModel(NamedTuple):
-    """What the tool pose of one arm depends on (fixed for a run)."""
-
-    lengths: Array  # (S,) m, section lengths
-    segments: Array  # (S,) segments per section (as floats)
-    tool_length: float  # m, tool-centre point along the tip's z
-
-
-class CableModel(NamedTuple):
-    """Cable routing for ``cable_lengths``: one row per (section, cable passing it) pair."""
-
-    segments: Array  # (S,) segments per section (as floats)
-    halves: Array  # (S,) m, half the segment pitch
-    pair_section: IntArray  # (P,) section of each pair
-    pair_cable: IntArray  # (P,) cable of each pair
-    pair_holes: Array  # (P, 2) m, the cable's hole (x, y) in a disk frame
+def pose_dtype(n_sections: int) -> np.dtype:
+    """Record of what one arm's tool pose depends on (fixed for a run)."""
+    return np.dtype([
+        ("lengths", np.float64, (n_sections,)),  # m, section lengths
+        ("segments", np.float64, (n_sections,)),  # segments per section (as floats)
+        ("tool_length", np.float64),  # m, tool-centre point along the tip's z
+    ])
 
 
-def pose_model(geometry: ArmGeometry, tool_length: float = 0.0) -> PoseModel:
-    """The pose record of ``geometry`` with a tool of ``tool_length`` (m)."""
-    return PoseModel(
-        np.array([float(s.length) for s in geometry.sections]),
-        np.array([float(s.n_segments) for s in geometry.sections]),
-        float(tool_length),
-    )
+def cable_dtype(n_sections: int, n_pairs: int) -> np.dtype:
+    """Record of the cable routing: one row per (section, cable passing it) pair."""
+    return np.dtype([
+        ("segments", np.float64, (n_sections,)),  # segments per section (as floats)
+        ("halves", np.float64, (n_sections,)),  # m, half the segment pitch
+        ("pair_section", np.int64, (n_pairs,)),  # section of each pair
+        ("pair_cable", np.int64, (n_pairs,)),  # cable of each pair
+        ("pair_holes", np.float64, (n_pairs, 2)),  # m, the cable's hole (x, y) in a disk frame
+    ])
 
 
-def cable_model(geometry: ArmGeometry) -> CableModel:
-    """The cable record of ``geometry``: cables three per section, section-major, base to tip."""
+def pose_model(geometry: ArmGeometry, tool_length: float = 0.0) -> NDArray[np.void]:
+    """The pose record of ``geometry`` with a tool of ``tool_length`` (m): a (1,) structured array."""
+    model = np.zeros(1, dtype=pose_dtype(geometry.n_sections))
+    model["lengths"][0] = [float(s.length) for s in geometry.sections]
+    model["segments"][0] = [float(s.n_segments) for s in geometry.sections]
+    model["tool_length"][0] = float(tool_length)
+    return model
+
+
+def cable_model(geometry: ArmGeometry) -> NDArray[np.void]:
+    """The cable record of ``geometry`` (cables three per section, section-major, base to tip): a (1,) structured array."""
     holes = geometry.cable_holes()
     cable_section = np.repeat(np.arange(geometry.n_sections), 3)
     pairs = [(m, c) for m in range(geometry.n_sections) for c in range(len(holes)) if cable_section[c] >= m]
-    return CableModel(
-        np.array([float(s.n_segments) for s in geometry.sections]),
-        np.array([float(s.pitch) / 2.0 for s in geometry.sections]),
-        np.array([m for m, _ in pairs], dtype=np.int64),
-        np.array([c for _, c in pairs], dtype=np.int64),
-        np.array([[holes[c][0], holes[c][1]] for _, c in pairs]),
-    )
+    model = np.zeros(1, dtype=cable_dtype(geometry.n_sections, len(pairs)))
+    model["segments"][0] = [float(s.n_segments) for s in geometry.sections]
+    model["halves"][0] = [float(s.pitch) / 2.0 for s in geometry.sections]
+    model["pair_section"][0] = [m for m, _ in pairs]
+    model["pair_cable"][0] = [c for _, c in pairs]
+    model["pair_holes"][0] = [[holes[c][0], holes[c][1]] for _, c in pairs]
+    return model
 
 
 @jit
@@ -103,22 +106,22 @@ def _one_minus_sinc_over_sq(x: float) -> float:
 
 
 @jit
-def pose_jacobian(model: PoseModel, w: Array, R: Array, p: Array, J: Array, derivatives: bool) -> None:  # noqa: PLR0915
-    """Tool pose and bending-coordinate Jacobian at ``w`` (u0, v0, u1, v1, ...).
+def pose_jacobian(pose: Record, w: Array, R: Array, p: Array, J: Array, derivatives: bool) -> None:  # noqa: PLR0915
+    """Tool pose and bending-coordinate Jacobian at ``w`` (u0, v0, u1, v1, ...) of the arm ``pose`` (a ``pose_dtype`` record).
 
     Writes R (9,) the tool frame row-major, p (3,) the tool point, and with ``derivatives``
     J (6·2S,) row-major: rows 0-2 the tool point's linear velocity, rows 3-5 the angular
     velocity, per unit change of each bending coordinate, in the arm base frame.
     """
-    S = model.lengths.shape[0]
+    S = pose.lengths.shape[0]
     m = 2 * S
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
     px = py = pz = 0.0
     cols = np.empty((m, 6))  # per coordinate: linear and angular velocity of the section's own motion
     ends = np.empty((S, 3))
     for k in range(S):
-        L = model.lengths[k]
-        n = model.segments[k]
+        L = pose.lengths[k]
+        n = pose.segments[k]
         u = w[2 * k]
         v = w[2 * k + 1]
         t = math.sqrt(u * u + v * v)
@@ -197,7 +200,7 @@ def pose_jacobian(model: PoseModel, w: Array, R: Array, p: Array, J: Array, deri
             r20 * s02 + r21 * s12 + r22 * s22,
         )
         ends[k, 0], ends[k, 1], ends[k, 2] = px, py, pz
-    tl = model.tool_length
+    tl = pose.tool_length
     Px, Py, Pz = px + tl * r02, py + tl * r12, pz + tl * r22
     R[0], R[1], R[2], R[3], R[4], R[5], R[6], R[7], R[8] = r00, r01, r02, r10, r11, r12, r20, r21, r22
     p[0], p[1], p[2] = Px, Py, Pz
@@ -215,19 +218,19 @@ def pose_jacobian(model: PoseModel, w: Array, R: Array, p: Array, J: Array, deri
 
 
 @jit
-def cable_lengths(model: CableModel, w: Array, out: Array) -> None:
-    """Cable lengths (m) at bending coordinates ``w`` into ``out`` (paper eq. 5-7).
+def cable_lengths(cables: Record, w: Array, out: Array) -> None:
+    """Cable lengths (m) at bending coordinates ``w`` into ``out`` (paper eq. 5-7); ``cables`` a ``cable_dtype`` record.
 
     Section m's segment carries a hole h to ``R (h + half·z) + half·z``; the cable's piece
     through it is ``|half·z + R(h + half·z) - h|``, written ``C_m (hx, hy, 1)`` with the 3×3
     ``C_m`` of section m's Rodrigues terms (rotation vector ``(-v, u, 0)/n``); a cable sums
     n_m pieces over the sections it passes.
     """
-    S = model.segments.shape[0]
+    S = cables.segments.shape[0]
     coef = np.empty((S, 3, 3))
     for m in range(S):
-        n = model.segments[m]
-        half = model.halves[m]
+        n = cables.segments[m]
+        half = cables.halves[m]
         rx, ry = -w[2 * m + 1] / n, w[2 * m] / n
         angle2 = rx * rx + ry * ry
         angle = math.sqrt(angle2)
@@ -241,13 +244,25 @@ def cable_lengths(model: CableModel, w: Array, out: Array) -> None:
         coef[m, 1, 0], coef[m, 1, 1], coef[m, 1, 2] = bxy, -B * rx * rx, -A * rx * half
         coef[m, 2, 0], coef[m, 2, 1], coef[m, 2, 2] = -A * ry, A * rx, (2.0 - B * angle2) * half
     out[:] = 0.0
-    for q in range(model.pair_section.shape[0]):
-        m = model.pair_section[q]
-        hx, hy = model.pair_holes[q, 0], model.pair_holes[q, 1]
+    for q in range(cables.pair_section.shape[0]):
+        m = cables.pair_section[q]
+        hx, hy = cables.pair_holes[q, 0], cables.pair_holes[q, 1]
         s0 = coef[m, 0, 0] * hx + coef[m, 0, 1] * hy + coef[m, 0, 2]
         s1 = coef[m, 1, 0] * hx + coef[m, 1, 1] * hy + coef[m, 1, 2]
         s2 = coef[m, 2, 0] * hx + coef[m, 2, 1] * hy + coef[m, 2, 2]
-        out[model.pair_cable[q]] += model.segments[m] * math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+        out[cables.pair_cable[q]] += cables.segments[m] * math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+
+
+@jit
+def model_pose_jacobian(model: NDArray[np.void], w: Array, R: Array, p: Array, J: Array, derivatives: bool) -> None:
+    """``pose_jacobian`` of the record in the (1,) array ``model`` (``pose_model``): the entry point from Python."""
+    pose_jacobian(model[0], w, R, p, J, derivatives)
+
+
+@jit
+def model_cable_lengths(model: NDArray[np.void], w: Array, out: Array) -> None:
+    """``cable_lengths`` of the record in the (1,) array ``model`` (``cable_model``): the entry point from Python."""
+    cable_lengths(model[0], w, out)
 
 
 class ArmPose:
@@ -259,5 +274,5 @@ class ArmPose:
 
     def pose_jacobian(self, w: ArrayLike, derivatives: bool = True) -> tuple[list[float], list[float], list[float] | None]:
         """``(R, p, J)``: R row-major 9 floats, p 3 floats, J row-major (6 × 2S) floats or None."""
-        pose_jacobian(self.model, np.asarray(w, dtype=np.float64), self._R, self._p, self._J, derivatives)
+        model_pose_jacobian(self.model, np.asarray(w, dtype=np.float64), self._R, self._p, self._J, derivatives)
         return self._R.tolist(), self._p.tolist(), self._J.tolist() if derivatives else None

@@ -23,7 +23,7 @@ from .. import kinematics as kin
 from ..geometry import ArmGeometry
 from ..kinematics_kernels import cable_model, pose_model
 from .config import ControlConfig
-from .kernels import ROTATION_BEYOND_3_RAD, ArmLaw, ArmState, tick
+from .kernels import ROTATION_BEYOND_3_RAD, law_dtype, state_dtype, tick
 
 Array = NDArray[np.float64]
 
@@ -64,26 +64,21 @@ class ArmController:
         self.max_correction = float(np.radians(config.max_correction_deg))
         # A section's common mode moves its three cables together: tension per metre of it.
         self.cable_kp = stiffness.reshape(S, 3).mean(axis=1)
-        self.law = ArmLaw(
-            pose=pose_model(geometry, self.tool_length),
-            cables=cable_model(geometry),
-            base_rot=np.ascontiguousarray(self.base[:3, :3].T),
-            max_bend=np.broadcast_to(np.asarray(geometry.max_bend, dtype=float), (S,)).copy(),
-            offset=self.offset,
-            cable_section=kin.cable_sections(geometry).astype(np.int64),
-            cable_kp=self.cable_kp,
-            gain=np.zeros((0, 0)) if self.gain is None else np.ascontiguousarray(self.gain),
-            outer_gain=float(config.outer_gain),
-            outer_proportional=float(config.outer_proportional),
-            orientation_weight=float(config.orientation_weight),
-            damping=float(config.damping),
-            max_correction=self.max_correction,
-            roll_free=self.roll_free,
-            min_tension=float(config.min_tension),
-            tension_gain=float(config.tension_gain),
-            max_extra_tension=float(config.max_extra_tension),
-        )
-        self.state = ArmState(np.zeros(2 * S), np.zeros(2 * S), np.zeros(S), np.zeros(2 * S))
+        cables = cable_model(geometry)
+        self.law = np.zeros(1, dtype=law_dtype(S, cables["pair_section"].shape[1]))
+        law = self.law[0]
+        law["pose"], law["cables"] = pose_model(geometry, self.tool_length)[0], cables[0]
+        law["base_rot"] = self.base[:3, :3].T
+        law["max_bend"] = np.broadcast_to(np.asarray(geometry.max_bend, dtype=float), (S,))
+        law["offset"], law["cable_section"], law["cable_kp"] = self.offset, kin.cable_sections(geometry), self.cable_kp
+        law["use_gain"] = self.gain is not None
+        if self.gain is not None:
+            law["gain"] = self.gain
+        for name in ("outer_gain", "outer_proportional", "orientation_weight", "damping", "min_tension", "tension_gain",
+                     "max_extra_tension"):
+            law[name] = float(getattr(config, name))
+        law["max_correction"], law["roll_free"] = self.max_correction, self.roll_free
+        self.state = np.zeros(1, dtype=state_dtype(S))
         self._holding = False
         self._r = np.zeros(3)
         self._no_tensions = np.zeros(3 * S)
@@ -92,17 +87,17 @@ class ArmController:
     @property
     def correction(self) -> Array:
         """(2S,) rad, the integrated bending-coordinate correction."""
-        return self.state.correction
+        return self.state["correction"][0]
 
     @property
     def proportional(self) -> Array:
         """(2S,) rad, the proportional share of the last step."""
-        return self.state.proportional
+        return self.state["proportional"][0]
 
     @property
     def extra(self) -> Array:
         """(S,) m, the common-mode shortening per section (tension keeping)."""
-        return self.state.extra
+        return self.state["extra"][0]
 
     def update(
         self,
@@ -125,11 +120,11 @@ class ArmController:
         tool pose, and an integrator fighting it winds up a correction that either drags
         the grasp along the object or flings the object when it comes free.
         """
-        state, cfg = self.state, self.config
+        cfg = self.config
         if holding:
             if not self._holding:
-                state.correction[:] += state.proportional
-                state.proportional[:] = 0.0
+                self.correction[:] += self.proportional
+                self.proportional[:] = 0.0
             dt = 0.0
         self._holding = holding
         closed = cfg.mode == "closed" and dt > 0.0
@@ -141,9 +136,9 @@ class ArmController:
         pos = np.ascontiguousarray(tcp_pos, dtype=np.float64)
         mat = np.ascontiguousarray(tcp_mat, dtype=np.float64).reshape(3, 3)
         lengths = np.empty(len(self.offset))
-        args = (self.law, state, q, plan, pos, mat, float(dt), closed, keep, measured, self._r)
+        args = (self.law, self.state, q, plan, pos, mat, float(dt), closed, keep, measured, self._r)
         if tick(*args, False, lengths) == ROTATION_BEYOND_3_RAD:  # the robust log, then the same tick
             self._r[:] = kin.log_so3(plan[:3, :3] @ mat.T)
             tick(*args, True, lengths)
-        self.last_command = state.w.tolist()
+        self.last_command = self.state["w"][0].tolist()
         return lengths

@@ -1,8 +1,8 @@
 """The control tick of one arm, compiled by numba: its only implementation.
 
 ``ArmController.update`` (``control.arm``) calls ``tick`` once per control tick with the
-arm's constant law (``ArmLaw``) and its state (``ArmState``), typed records with named
-fields (named tuples of arrays and numbers in numba). The tick:
+arm's constant law and its state, records with named fields (numpy structured dtypes
+``law_dtype``, ``state_dtype``; numba reads their fields by name). The tick:
 
 1. the commanded shape: plan + integrated correction + proportional share, each section
    bounded to its maximum bend (``commanded``);
@@ -22,52 +22,56 @@ Tested against the law written with vectorised numpy (``tests/test_control_kerne
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..kinematics_kernels import CableModel, PoseModel, cable_lengths, jit, pose_jacobian
+from ..kinematics_kernels import cable_dtype, cable_lengths, jit, pose_dtype, pose_jacobian
 
 Array = NDArray[np.float64]
-IntArray = NDArray[np.int64]
+Record = Any  # one record of a structured array (law_dtype / state_dtype): numba reads its fields as attributes
 
 ROTATION_BEYOND_3_RAD = 1  # ``tick``'s status: give the rotation error (``kinematics.log_so3``) and call again
 
 
-class ArmLaw(NamedTuple):
-    """One arm's control law: geometry, mount, gains and bounds (fixed for a run)."""
+def law_dtype(n_sections: int, n_pairs: int) -> np.dtype:
+    """Record of one arm's control law: geometry, mount, gains and bounds (fixed for a run)."""
+    S, C = n_sections, 3 * n_sections
+    return np.dtype([
+        ("pose", pose_dtype(S)),
+        ("cables", cable_dtype(S, n_pairs)),
+        ("base_rot", np.float64, (3, 3)),  # the mount rotation's transpose: world -> arm base frame
+        ("max_bend", np.float64, (S,)),  # rad, bound on each section's commanded bend
+        ("offset", np.float64, (C,)),  # m, each cable's pre-tension offset T/k
+        ("cable_section", np.int64, (C,)),  # section of each cable
+        ("cable_kp", np.float64, (S,)),  # N/m, tension per metre of a section's common mode
+        ("use_gain", np.bool_),  # integrate through the gain matrix (else the scalar outer_gain)
+        ("gain", np.float64, (2 * S, 2 * S)),  # 1/s, the integral gain matrix
+        ("outer_gain", np.float64),  # 1/s
+        ("outer_proportional", np.float64),  # proportional share of the step
+        ("orientation_weight", np.float64),  # m/rad
+        ("damping", np.float64),  # m², damped-least-squares regulariser
+        ("max_correction", np.float64),  # rad, bound on the correction per section
+        ("roll_free", np.bool_),  # correct the tool point and axis only (5 task coordinates)
+        ("min_tension", np.float64),  # N
+        ("tension_gain", np.float64),  # 1/s
+        ("max_extra_tension", np.float64),  # N
+    ])
 
-    pose: PoseModel
-    cables: CableModel
-    base_rot: Array  # (3, 3) the mount rotation's transpose: world -> arm base frame
-    max_bend: Array  # (S,) rad, bound on each section's commanded bend
-    offset: Array  # (C,) m, each cable's pre-tension offset T/k
-    cable_section: IntArray  # (C,) section of each cable
-    cable_kp: Array  # (S,) N/m, tension per metre of a section's common mode
-    gain: Array  # (2S, 2S) 1/s, the integral gain matrix; (0, 0): the scalar outer_gain
-    outer_gain: float  # 1/s
-    outer_proportional: float  # proportional share of the step
-    orientation_weight: float  # m/rad
-    damping: float  # m², damped-least-squares regulariser
-    max_correction: float  # rad, bound on the correction per section
-    roll_free: bool  # correct the tool point and axis only (5 task coordinates)
-    min_tension: float  # N
-    tension_gain: float  # 1/s
-    max_extra_tension: float  # N
 
-
-class ArmState(NamedTuple):
-    """The controller's own state (the arrays are updated in place)."""
-
-    correction: Array  # (2S,) rad, integrated bending-coordinate correction
-    proportional: Array  # (2S,) rad, proportional share of the last step
-    extra: Array  # (S,) m, common-mode shortening per section (tension keeping)
-    w: Array  # (2S,) rad, the last commanded bending coordinates
+def state_dtype(n_sections: int) -> np.dtype:
+    """Record of the controller's own state (updated in place by ``tick``)."""
+    return np.dtype([
+        ("correction", np.float64, (2 * n_sections,)),  # rad, integrated bending-coordinate correction
+        ("proportional", np.float64, (2 * n_sections,)),  # rad, proportional share of the last step
+        ("extra", np.float64, (n_sections,)),  # m, common-mode shortening per section (tension keeping)
+        ("w", np.float64, (2 * n_sections,)),  # rad, the last commanded bending coordinates
+    ])
 
 
 @jit
-def commanded(law: ArmLaw, state: ArmState, q_plan: Array) -> None:
+def commanded(law: Record, state: Record, q_plan: Array) -> None:
     """``state.w``: the planned bend plus correction and proportional share, bend-limited per section."""
     c, pr, w = state.correction, state.proportional, state.w
     for k in range(law.max_bend.shape[0]):
@@ -102,7 +106,7 @@ def rotation_error(target: Array, actual: Array, r: Array) -> bool:
 
 
 @jit
-def pose_step(law: ArmLaw, w: Array, plan: Array, pos: Array, mat: Array, r: Array) -> Array:
+def pose_step(law: Record, w: Array, plan: Array, pos: Array, mat: Array, r: Array) -> Array:
     """The damped-least-squares step Jᵀ(JJᵀ + λI)⁻¹e in bending coordinates at shape ``w``.
 
     e: the tool-point error and ``orientation_weight`` × the rotation error ``r`` (world),
@@ -152,10 +156,10 @@ def pose_step(law: ArmLaw, w: Array, plan: Array, pos: Array, mat: Array, r: Arr
 
 
 @jit
-def integrate(law: ArmLaw, state: ArmState, step: Array, dt: float) -> None:
+def integrate(law: Record, state: Record, step: Array, dt: float) -> None:
     """Integrate ``step`` into the correction (scalar gain or matrix), set the proportional share, bound per section."""
     c, n = state.correction, step.shape[0]
-    if law.gain.shape[0] > 0:
+    if law.use_gain:
         for i in range(n):
             s = 0.0
             for j in range(n):
@@ -175,7 +179,7 @@ def integrate(law: ArmLaw, state: ArmState, step: Array, dt: float) -> None:
 
 
 @jit
-def keep_tension(law: ArmLaw, state: ArmState, tensions: Array, dt: float) -> None:
+def keep_tension(law: Record, state: Record, tensions: Array, dt: float) -> None:
     """Integrate each section's common-mode shortening toward min_tension on its slackest cable, bounded.
 
     A section's three cables span its two bending coordinates plus one common mode:
@@ -192,7 +196,7 @@ def keep_tension(law: ArmLaw, state: ArmState, tensions: Array, dt: float) -> No
 
 
 @jit
-def set_points(law: ArmLaw, state: ArmState, out: Array) -> None:
+def set_points(law: Record, state: Record, out: Array) -> None:
     """Cable lengths of the commanded shape less the pre-tension offset and the common mode."""
     cable_lengths(law.cables, state.w, out)
     for c in range(out.shape[0]):
@@ -201,16 +205,17 @@ def set_points(law: ArmLaw, state: ArmState, out: Array) -> None:
 
 @jit
 def tick(  # noqa: PLR0913
-    law: ArmLaw, state: ArmState, q_plan: Array, plan: Array, pos: Array, mat: Array, dt: float,
+    laws: NDArray[np.void], states: NDArray[np.void], q_plan: Array, plan: Array, pos: Array, mat: Array, dt: float,
     closed: bool, keep: bool, tensions: Array, r: Array, have_r: bool, out: Array,
 ) -> int:
-    """One control tick: the set-points into ``out`` (C,); returns 0.
+    """One control tick of the arm in the (1,) record arrays ``laws``/``states``: the set-points into ``out`` (C,); returns 0.
 
     ``closed``: integrate the pose error (``plan``, ``pos``, ``mat``) over ``dt``; ``keep``:
     tension keeping on the measured ``tensions``. ``have_r``: ``r`` holds the rotation
     error already; otherwise it is computed here and, beyond 3 rad, nothing changes and
     ``ROTATION_BEYOND_3_RAD`` is returned for the caller to give it (``kinematics.log_so3``).
     """
+    law, state = laws[0], states[0]
     commanded(law, state, q_plan)
     if closed:
         if not have_r and not rotation_error(plan[:3, :3], mat, r):
