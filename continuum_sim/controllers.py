@@ -134,10 +134,9 @@ def plan_at(plan: TaskPlan, arm: str, t: float) -> tuple[Array, Array]:
     """
     from .control.kernels import plan_sample  # numba: loaded with the controllers, not with the config
 
-    def samples(a: Array) -> Array:
-        return np.ascontiguousarray(a, dtype=np.float64)
-
-    return plan_sample(samples(plan.t), float(t), samples(plan.q(arm)), samples(plan.tcp(arm)))
+    as_samples = np.ascontiguousarray  # float64, C order: one compiled signature (no copy for the plan's own arrays)
+    return plan_sample(as_samples(plan.t, np.float64), float(t), as_samples(plan.q(arm), np.float64),
+                       as_samples(plan.tcp(arm), np.float64))
 
 
 class PlanTrackingController:
