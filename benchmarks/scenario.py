@@ -127,7 +127,7 @@ def _half_cut_grid(config: ScenarioConfig, model: Any, data: Any) -> Any:
     mid-cut frame draws: the most boxes, the uncut band being two)."""
     import numpy as np
 
-    from continuum_sim.model.cutting import foam_cutter
+    from continuum_sim.plant.cutter import foam_cutter
 
     grid = foam_cutter(model, data, config.layout, config.scene).grid
     plate = config.layout.plate

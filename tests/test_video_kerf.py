@@ -11,7 +11,7 @@ from continuum_sim.glbackend import choose_gl_backend
 choose_gl_backend()
 import mujoco  # noqa: E402
 
-from continuum_sim.model.cutting import FoamGrid  # noqa: E402
+from continuum_sim.plant.foam import FoamGrid  # noqa: E402
 from continuum_sim.scenario.config import ScenarioConfig  # noqa: E402
 from continuum_sim.scenario.runner import build_scene_model  # noqa: E402
 from continuum_sim.video_foam import KerfVoxels, kerf_region, project_points  # noqa: E402

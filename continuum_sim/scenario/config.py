@@ -14,7 +14,7 @@ from importlib import resources
 from typing import Any
 
 from ..configio import ConfigError, config_from_file, dumps_toml, from_dict, require_int, require_range, save_toml, to_dict
-from ..control import ControlConfig
+from ..control.config import ControlConfig
 from ..geometry import ArmGeometry
 from ..layout import TaskLayout
 from ..model.options import ModelOptions

@@ -57,7 +57,7 @@ class Simulation:
     # The model to draw (same state layout as ``model``): the spatial twin of a native-cable
     # model, whose fixed-tendon cables MuJoCo does not draw (model.cable_path); None: ``model``.
     render_model: mujoco.MjModel | None = None
-    # The foam cutter (``model.cutting.FoamCutter``: its voxel grid, cut progress, spindle), set
+    # The foam cutter (``plant.cutter.FoamCutter``: its voxel grid, cut progress, spindle), set
     # by the runner for observers that show it (the video); None: a run without one.
     cutter: Any = None
 
