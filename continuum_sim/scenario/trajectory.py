@@ -65,6 +65,7 @@ class Trajectory:
     # The cutter's record (model.cutting.CuttingRecord.arrays(): cut_* series, kerf_map, ...);
     # empty for runs saved before the foam cutter.
     cutting: dict[str, np.ndarray] = field(default_factory=dict)
+    cpu_seconds: float | None = None  # process CPU time of the run (time.process_time); None for runs saved before it
 
     _ARRAYS = ("t", "stage", "plan_index", "sample_pos", "sample_rel_pos", "sample_welded", "cells_remaining",
                "spindle_speed", "contact_force", "arm_distance")
@@ -92,6 +93,7 @@ class Trajectory:
             "failure": self.failure,
             "wall_breakdown_s": self.wall_breakdown_s,
             "wall_seconds": self.wall_seconds,
+            "cpu_seconds": self.cpu_seconds,
         }
 
     def to_bytes(self) -> bytes:
@@ -130,6 +132,7 @@ class Trajectory:
             wall_breakdown_s=dict(meta["wall_breakdown_s"]),
             wall_seconds=float(meta["wall_seconds"]),
             cutting=_cutting_arrays(data),
+            cpu_seconds=meta.get("cpu_seconds"),
         )
 
 
