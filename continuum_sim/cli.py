@@ -107,18 +107,21 @@ def _cmd_run(args: argparse.Namespace) -> int:
                _clip(f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__, 200))
         raise
     finish(out, "complete")
+    def rounded(value, digits: int):  # None where the run has no such figure (e.g. no cutting)
+        return None if value is None else round(value, digits)
+
     summary = {
         "task_completed": metrics["task"]["completed"],
         "task_failure": metrics["task"]["failure"],
         "sample_detached": metrics["sample_detached"],
         "sample_held_at_end": metrics["sample_held_at_end"],
         "detached_before_cut_complete": metrics["detached_before_cut_complete"],
-        "cutting_tip_error_mm_mean": round(metrics["cutting_tip_error_mm"]["mean"], 4),
-        "spindle_axis_error_deg_max": round(metrics["spindle_axis_error_deg"]["max"], 4),
+        "cutting_tip_error_mm_mean": rounded(metrics["cutting_tip_error_mm"]["mean"], 4),
+        "spindle_axis_error_deg_max": rounded(metrics["spindle_axis_error_deg"]["max"], 4),
         "min_arm_distance_mm": round(1000 * metrics["min_arm_distance_m"], 2),
         "control": metrics["control"],
-        "cpu_real_time_factor": round(metrics["cpu_real_time_factor"] or 0.0, 2),
-        "wall_real_time_factor": round(metrics["wall_real_time_factor"] or 0.0, 2),
+        "cpu_real_time_factor": rounded(metrics["cpu_real_time_factor"], 2),
+        "wall_real_time_factor": rounded(metrics["wall_real_time_factor"], 2),
     }
     print(json.dumps(summary, indent=2))
     _write_run_report(out)

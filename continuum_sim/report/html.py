@@ -46,6 +46,7 @@ def number(value: Any, digits: int = 4) -> str:
     if isinstance(value, float):
         if not math.isfinite(value):
             return "–"
+        value += 0.0  # -0.0 shows as 0
         return f"{value:.{digits}g}"
     return str(value)
 

@@ -88,9 +88,9 @@ def key_metrics_table(metrics: dict[str, Any]) -> str:
 def tip_error_table(metrics: dict[str, Any]) -> str:
     """Tool-centre error per arm and stage (mean / max, mm)."""
     per_arm = metrics.get("tip_error_mm") or {}
-    stages: list[str] = []
+    stages: list[str] = [s for s in metrics.get("stages_run") or [] if any(s in stats for stats in per_arm.values())]
     for stats in per_arm.values():
-        stages += [s for s in stats if s not in stages]
+        stages += [s for s in stats if s not in stages]  # "all" (and any stage the run did not list) last
     if not stages:
         return ""
     rows = []
