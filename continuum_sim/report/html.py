@@ -22,7 +22,8 @@ h1{font-size:1.5em;margin-bottom:.2em}h2{font-size:1.2em;border-bottom:1px solid
 table{border-collapse:collapse;margin:.5em 0;font-size:.9em}th,td{border:1px solid #ccc;padding:.25em .6em;text-align:right}
 th{background:#f3f3f3}td.l,th.l{text-align:left}
 .ok{color:#14671f;font-weight:bold}.bad{color:#a31515;font-weight:bold}.muted{color:#777}
-figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}figcaption{font-size:.85em;color:#555}
+figure{margin:.5em 1em .5em 0;display:inline-block;vertical-align:top;max-width:100%}figure img{max-width:100%;border:1px solid #ddd}
+.wide{overflow-x:auto;max-width:100%}figcaption{font-size:.85em;color:#555}
 pre{background:#f7f7f7;padding:.6em;overflow:auto;font-size:.8em;max-height:40em}
 video{max-width:100%;border:1px solid #ddd}
 .banner{padding:.6em 1em;border-radius:4px;margin:.6em 0;font-size:1.1em}
@@ -66,7 +67,7 @@ def table(headers: Sequence[str], rows: Iterable[Sequence[Any]], *, left: int = 
             text = cell if raw and isinstance(cell, str) else esc(number(cell))
             cells.append(f'<td class="l">{text}</td>' if i < left else f"<td>{text}</td>")
         body.append("<tr>" + "".join(cells) + "</tr>")
-    return f"<table{ident}><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+    return f"<div class=\"wide\"><table{ident}><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table></div>"
 
 
 def image(path: Path, caption: str | None = None) -> str:

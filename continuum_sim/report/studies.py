@@ -83,7 +83,7 @@ def sweep_page(root: Path) -> str:
         sections.append(h.section("Failed variants", h.table(("index", "variant", "error"),
                                                               [(r.get("index"), r.get("variant_id"), r.get("error")) for r in failed],
                                                               left=3), "failed"))
-    plots = h.plot_files(root)
+    plots = sorted(h.plot_files(root), key=lambda p: (not p.name.startswith("overview"), "heatmap" not in p.name, str(p)))
     sections.append(h.section("Plots", h.images(plots, root) if plots else '<p class="muted">No plots.</p>', "plots"))
     spec = root / "spec.toml"
     if spec.is_file():
