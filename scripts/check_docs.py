@@ -51,12 +51,13 @@ class Check:
     text_before: str = ""
 
 
-def find_checks() -> list[Check]:
+def find_checks(root: Path = ROOT) -> list[Check]:
+    """Every marker in ``root``'s README.md and docs/*.md, in file order."""
     checks = []
     for pattern in DOCS:
-        for path in sorted(ROOT.glob(pattern)):
+        for path in sorted(root.glob(pattern)):
             lines = path.read_text().splitlines()
-            rel = str(path.relative_to(ROOT))
+            rel = str(path.relative_to(root))
             for i, line in enumerate(lines):
                 block = BLOCK.match(line)
                 if block:
@@ -81,14 +82,14 @@ def _argv(command: str) -> list[str]:
     return argv
 
 
-def run(check: Check) -> str | None:
-    """None when the check holds, else what is wrong."""
+def run(check: Check, root: Path = ROOT) -> str | None:
+    """None when the check holds, else what is wrong (the command runs in ``root``)."""
     if not check.block and check.expected not in check.text_before:
         return f"the marker's value {check.expected!r} is not in the text before it"
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     env.setdefault("MUJOCO_GL", "egl")
     try:
-        done = subprocess.run(_argv(check.command), cwd=ROOT, env=env, capture_output=True, text=True, timeout=TIMEOUT_S)
+        done = subprocess.run(_argv(check.command), cwd=root, env=env, capture_output=True, text=True, timeout=TIMEOUT_S)
     except subprocess.TimeoutExpired:
         return f"timed out after {TIMEOUT_S} s"
     if done.returncode != 0:
