@@ -65,7 +65,7 @@ class Walk:
             tail = (done.stderr.strip() or done.stdout.strip()).splitlines()[-3:]
             problem = f"exit {done.returncode}, expected {expect}: {' | '.join(tail)}"
         elif check is not None:
-            problem = check(done.stdout, done.stderr)
+            problem = check(done)
         print(f"{'ok' if problem is None else 'FAILED':6} {seconds:5.1f} s  {name}", flush=True)
         if problem:
             print(f"       {problem}", flush=True)
@@ -73,8 +73,9 @@ class Walk:
         return done.stdout
 
 
-def _last_line_is_outcome(out: str, _err: str) -> str | None:
-    last = out.strip().splitlines()[-1] if out.strip() else ""
+def _last_line_is_outcome(done: subprocess.CompletedProcess) -> str | None:
+    out = done.stdout.strip()
+    last = out.splitlines()[-1] if out else ""
     return None if last.startswith("outcome: task ") else f"the last line is not the outcome: {last!r}"
 
 
@@ -84,14 +85,14 @@ def walk(work: Path) -> int:
     (work / "small_video.toml").write_text(SMALL_VIDEO)
     run = work / "runs" / "default"
 
-    def run_folder(out: str, _err: str) -> str | None:
+    def run_folder(done: subprocess.CompletedProcess) -> str | None:
         missing = [n for n in ("report.html", "video.mp4", "metrics.json", "trajectory.npz", "config.toml", "plots/toolpath.png")
                    if not (run / n).is_file()]
         if missing:
             return f"the run folder lacks {', '.join(missing)}"
         if json.loads((run / "metrics.json").read_text())["task"]["completed"] is not True:
             return "the task did not complete"
-        return _last_line_is_outcome(out, _err)
+        return _last_line_is_outcome(done)
 
     # 1. The README's main job.
     w.step("README: continuum-sim run --video --out runs/default (small video)",
@@ -104,32 +105,32 @@ def walk(work: Path) -> int:
     w.step("README: python examples/gym_env.py --stages initial clamping", ["python", "examples/gym_env.py", "--stages", "initial", "clamping"])
     # 3. The commands of the docs, cheap variants.
     w.step("continuum-sim fk", ["continuum-sim", "fk", "0.5", "0", "0.3", "1.0", "0", "0", "--json"],
-           check=lambda out, err: None if "tip_position_m" in json.loads(out) else "no tip position")
+           check=lambda r: None if "tip_position_m" in json.loads(r.stdout) else "no tip position")
     w.step("continuum-sim ik", ["continuum-sim", "ik", "--position", "0.1", "0", "0.5", "--orientation", "axis", "--zaxis", "0", "0", "1"],
-           check=lambda out, err: None if json.loads(out)["success"] else "not solved")
+           check=lambda r: None if json.loads(r.stdout)["success"] else "not solved")
     w.step("continuum-sim plan", ["continuum-sim", "plan", "--out", str(work / "plan"), "--no-plots"])
     w.step("continuum-sim workspace (2,000 samples)", ["continuum-sim", "workspace", "--out", str(work / "workspace"), "--samples", "2000"])
     w.step("continuum-sim build-model", ["continuum-sim", "build-model", "--out", str(work / "models"), "--models-only"],
-           check=lambda out, err: None if (work / "models" / "dual_arm.xml").is_file() else "no dual_arm.xml")
+           check=lambda _r: None if (work / "models" / "dual_arm.xml").is_file() else "no dual_arm.xml")
     w.step("continuum-sim metrics RUN_DIR", ["continuum-sim", "metrics", str(run)])
     w.step("continuum-sim report RUN_DIR", ["continuum-sim", "report", str(run)],
-           check=lambda out, err: None if "(run report" in out else out)
+           check=lambda r: None if "(run report" in r.stdout else r.stdout)
     try:
         import rerun  # noqa: F401
 
         w.step("continuum-sim export RUN_DIR --rerun", ["continuum-sim", "export", str(run), "--rerun"],
-               check=lambda out, err: None if (run / "replay.rrd").stat().st_size > 100_000 else "replay.rrd too small")
+               check=lambda _r: None if (run / "replay.rrd").stat().st_size > 100_000 else "replay.rrd too small")
     except ImportError:
         w.step("continuum-sim export RUN_DIR --rerun (no rerun-sdk: one line, exit 2)", ["continuum-sim", "export", str(run), "--rerun"],
-               expect=2, check=lambda out, err: None if ".[replay]" in err else err)
+               expect=2, check=lambda r: None if ".[replay]" in r.stderr else r.stderr)
     (work / "tiny.toml").write_text(TINY_SWEEP)
     sweep = work / "sweeps" / "tiny"
     w.step("continuum-sim sweep SPEC.toml (2 variants)", ["continuum-sim", "sweep", str(work / "tiny.toml"), "--out", str(sweep), "--quiet"],
-           check=lambda out, err: None if (sweep / "report.html").is_file() and (sweep / "results.csv").is_file() else "no report/results")
+           check=lambda _r: None if (sweep / "report.html").is_file() and (sweep / "results.csv").is_file() else "no report/results")
     w.step("continuum-sim validate --quick --only capstan cosserat.analytic",
            ["continuum-sim", "validate", "--quick", "--only", "capstan", "cosserat.analytic", "--out", str(work / "validation"), "--no-plots"])
     w.step("continuum-sim report VALIDATION_DIR", ["continuum-sim", "report", str(work / "validation")],
-           check=lambda out, err: None if "(validation report" in out else out)
+           check=lambda r: None if "(validation report" in r.stdout else r.stdout)
     data = work / "synthetic.csv"
     w.step("continuum-sim synthesize (2 s)", ["continuum-sim", "synthesize", "--set", "model.stiffness_scale=1.3", "--duration", "2",
                                               "--rate", "10", "--out", str(data)])
@@ -137,9 +138,9 @@ def walk(work: Path) -> int:
     w.step("continuum-sim identify (1 iteration)", ["continuum-sim", "identify", str(data), "--fit", "model.stiffness_scale", "--max-nfev", "1",
                                                    "--out", str(work / "identify"), "--quiet"])
     w.step("continuum-sim report IDENTIFY_DIR", ["continuum-sim", "report", str(work / "identify")],
-           check=lambda out, err: None if "(identification report" in out else out)
+           check=lambda r: None if "(identification report" in r.stdout else r.stdout)
     w.step("continuum-sim view (no display: exit 1, one line)", ["continuum-sim", "view"], expect=1,
-           check=lambda out, err: None if len(err.strip().splitlines()) == 1 else err)
+           check=lambda r: None if len(r.stderr.strip().splitlines()) == 1 else r.stderr)
     total = time.perf_counter() - t0
     print(f"newcomer path: {len(w.failures)} failed steps, {total:.0f} s wall")
     for failure in w.failures:
