@@ -156,8 +156,7 @@ def parameters_section(run_dir: Path) -> str:
                      + h.table(("parameter", "this run", "default"), [(k, _cell(a), _cell(b)) for k, a, b in diff],
                                left=3, css_id="overrides"))
     elif (run_dir / "config.toml").is_file():
-        parts.append("<p>Every field has its shipped default value (<code>continuum_sim/data/scenario.toml</code>), "
-                     "apart from values the run resolves itself (none differ).</p>")
+        parts.append("<p>Every field has its shipped default value (<code>continuum_sim/data/scenario.toml</code>).</p>")
     return "".join(parts)
 
 
