@@ -107,7 +107,11 @@ def test_validation_identification_and_generic_study_folders_get_their_pages(tmp
     (study / "summary.json").write_text(json.dumps({"best_value": 0.25, "trials": 40, "history": [1, 2]}))
     (study / "indices.csv").write_text("parameter,S1,ST\nmodel.stiffness_scale,0.61,0.7\ncontrol.pretension,0.12,0.2\n")
     shutil.copy(REPO / "docs" / "stiffness_sweep.png", study / "plots" / "indices.png")
-    for folder, kind in ((validation, "validation"), (identify, "identification"), (study, "study")):
+    replay = tmp_path / "replay"  # `continuum-sim replay`'s folder has a config and a trajectory, but is no run
+    replay.mkdir()
+    for name, text in (("config.toml", ""), ("trajectory.npz", ""), ("replay.json", '{"samples": 3}')):
+        (replay / name).write_text(text)
+    for folder, kind in ((validation, "validation"), (identify, "identification"), (study, "study"), (replay, "study")):
         assert main(["report", str(folder)]) == 0
         assert f"({kind} report," in capsys.readouterr().out
     rows = json.loads((validation / "report.json").read_text())["rows"]

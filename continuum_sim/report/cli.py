@@ -31,7 +31,8 @@ def cmd_export(args: argparse.Namespace) -> int:
         raise ConfigError("--out", f"{out} is a folder; give a file name (NAME.rrd)")
     summary = export_rerun(run_dir, out)
     print(f"wrote {summary['path']} ({summary['bytes'] / 1e6:.1f} MB, {summary['frames']} frames, "
-          f"{len(summary['entities'])} entities, {summary['kerf_columns']} kerf columns); view it: rerun {summary['path']}")
+          f"{len(summary['entities'])} entities, {summary['kerf_columns']} kerf columns"
+          f"{' shown as they were cut' if summary['kerf_timed'] else ''}); view it: rerun {summary['path']}")
     return 0
 
 

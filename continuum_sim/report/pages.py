@@ -27,13 +27,15 @@ def detect_kind(folder: Path) -> str:
     Recognised by the files each command writes: a run its ``config.toml`` with
     ``metrics.json``/``trajectory.npz``; a sweep ``sweep.json``; an identification
     ``identified.toml`` beside ``report.json``; a validation ``report.json`` holding ``rows``.
-    A folder with none of these but a JSON or CSV summary or PNGs is a ``study``.
+    A folder with none of these but a JSON or CSV summary or PNGs is a ``study`` (so is
+    ``continuum-sim replay``'s folder, recognised by its ``replay.json``).
     Raises ``ConfigError`` for a folder with nothing to show.
     """
     folder = Path(folder)
     if not folder.is_dir():
         raise ConfigError("DIR", f"{folder} is not a folder")
-    if (folder / "config.toml").is_file() and any((folder / n).is_file() for n in ("metrics.json", "trajectory.npz", "RUNNING")):
+    replay = (folder / "replay.json").is_file()  # `continuum-sim replay`'s folder: config and trajectory too, but a study
+    if (folder / "config.toml").is_file() and not replay and any((folder / n).is_file() for n in ("metrics.json", "trajectory.npz", "RUNNING")):
         return "run"
     if (folder / "sweep.json").is_file():
         return "sweep"

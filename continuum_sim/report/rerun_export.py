@@ -149,13 +149,13 @@ def export_rerun(run_dir: Path, out: Path) -> dict[str, Any]:
     columns("plots/cells_remaining", rr.Scalars.columns(scalars=tr.cells_remaining.astype(float)))
     columns("plots/arm_gap_mm", rr.Scalars.columns(scalars=tr.arm_distance * 1000.0))
     columns("plots/stage", rr.Scalars.columns(scalars=tr.stage.astype(float)))
-    n_kerf = 0
+    n_kerf, kerf_timed = 0, False
     if tr.cutting:
         force = np.asarray(tr.cutting["cut_force"], dtype=float)
         columns("plots/cutting_force_n", rr.Scalars.columns(scalars=np.linalg.norm(force[:, :2], axis=1)))
         xyz, fraction, appear = kerf_columns(tr.cutting, tr.cell_removal_times, plate.kerf_polyline(), plate.kerf_width)
         xyz[:, 2] = plate.top_z + 0.0005  # just above the top face
-        n_kerf = len(xyz)
+        n_kerf, kerf_timed = len(xyz), bool(np.isfinite(appear).any())
         colours = np.column_stack([np.full(n_kerf, 120), 60 + 100 * (1 - fraction), np.full(n_kerf, 20)]).astype(np.uint8)
         appear = np.where(np.isfinite(appear), appear, t[-1])
         order = np.argsort(appear, kind="stable")
@@ -171,5 +171,5 @@ def export_rerun(run_dir: Path, out: Path) -> dict[str, Any]:
         entities.append("world/kerf")
     rec.flush()
     rec.disconnect()
-    return {"path": str(out), "frames": n, "entities": sorted(set(entities)), "kerf_columns": n_kerf,
+    return {"path": str(out), "frames": n, "entities": sorted(set(entities)), "kerf_columns": n_kerf, "kerf_timed": kerf_timed,
             "bytes": Path(out).stat().st_size if Path(out).exists() else 0}
