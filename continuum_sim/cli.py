@@ -97,6 +97,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except SimulationDiverged as exc:
         finish(out, "diverged", str(exc))
         _write_run_report(out)
+        print("outcome: task FAILED: diverged (metrics.json: status_reason)")
         print(f"continuum-sim run: error: {exc}", file=sys.stderr)
         return EXIT_DIVERGED
     except BaseException as exc:  # Ctrl-C, SIGTERM, disk full, a refused plan, a bug: the folder says so
@@ -107,9 +108,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                _clip(f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__, 200))
         raise
     finish(out, "complete")
-    def rounded(value, digits: int):  # None where the run has no such figure (e.g. no cutting)
-        return None if value is None else round(value, digits)
-
+    rounded = _rounded
     summary = {
         "task_completed": metrics["task"]["completed"],
         "task_failure": metrics["task"]["failure"],
@@ -132,6 +131,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"continuum-sim run: the task failed: {failure} (--require-completed)", file=sys.stderr)
         return EXIT_NEGATIVE
     return 0
+
+
+def _rounded(value: float | None, digits: int) -> float | None:
+    """``round`` that keeps None (a figure the run has not got, e.g. no cutting in a partial run)."""
+    return None if value is None else round(value, digits)
 
 
 def _write_run_report(out) -> None:

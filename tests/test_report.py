@@ -198,3 +198,18 @@ def test_export_without_rerun_sdk_is_one_line_exit_2_naming_the_extra(short_run,
     assert len(err.splitlines()) == 1 and '.[replay]' in err
     assert main(["export", str(short_run)]) == 2
     assert "--rerun" in capsys.readouterr().err
+
+
+def test_a_diverged_run_still_gets_its_report_and_outcome_line(tmp_path, short_run, monkeypatch, capsys):
+    import continuum_sim.scenario.runner as runner
+
+    def diverging(config, out, **kwargs):  # what run_scenario does on divergence: partial results written, then raise
+        shutil.copy(short_run / "metrics.json", out / "metrics.json")
+        raise runner.SimulationDiverged("simulation diverged: t = 0.2 s: MuJoCo warning (test)")
+
+    monkeypatch.setattr(runner, "run_scenario", diverging)
+    assert main(["run", "--out", str(tmp_path / "d"), "--quiet"]) == 3
+    captured = capsys.readouterr()
+    assert captured.out.strip().splitlines()[-1] == "outcome: task FAILED: diverged (metrics.json: status_reason)"
+    text = (tmp_path / "d" / "report.html").read_text()
+    assert "(run diverged (simulation diverged: t = 0.2 s: MuJoCo warning (test)))" in text
