@@ -88,6 +88,7 @@ def kerf_columns(cutting: dict[str, np.ndarray], removal_times: np.ndarray, poly
 def export_rerun(run_dir: Path, out: Path) -> dict[str, Any]:
     """Write the recording of ``run_dir`` to ``out``; returns a summary (entities, frames, bytes)."""
     rr = require_rerun()
+    from ..model.names import arm_cable_names
     from ..scenario.trajectory import Trajectory
 
     run_dir = Path(run_dir)
@@ -142,8 +143,9 @@ def export_rerun(run_dir: Path, out: Path) -> dict[str, Any]:
         entities.append(f"world/{arm}/measured_so_far")
         error_mm = np.linalg.norm(a.tcp_pos - planned, axis=1) * 1000.0
         columns(f"plots/tool_centre_error_mm/{arm}", rr.Scalars.columns(scalars=error_mm))
-        for c in range(a.cable_tension.shape[1]):
-            columns(f"plots/cable_tension_n/{arm}/cable_{c // 3}_{c % 3}", rr.Scalars.columns(scalars=a.cable_tension[:, c]))
+        names = arm_cable_names(arm, a.cable_tension.shape[1] // 3)  # "<arm>/cable_<section>_<k>", the model's names
+        for c, name in enumerate(names):
+            columns(f"plots/cable_tension_n/{name}", rr.Scalars.columns(scalars=a.cable_tension[:, c]))
     columns("world/sample", rr.Points3D.columns(positions=tr.sample_pos, radii=np.full(n, 0.006), colors=[(208, 128, 80)] * n))
     columns("plots/spindle_speed_rad_s", rr.Scalars.columns(scalars=tr.spindle_speed))
     columns("plots/cells_remaining", rr.Scalars.columns(scalars=tr.cells_remaining.astype(float)))
