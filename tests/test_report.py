@@ -187,7 +187,7 @@ def test_export_rerun_writes_a_loadable_recording(short_run, tmp_path, capsys):
     text = str(store.schema())
     for entity in ("/world/left/disks", "/world/right/backbone", "/world/left/tool", "/world/left/planned_path",
                    "/world/right/measured_path", "/world/plate", "/world/sample", "/plots/tool_centre_error_mm/left",
-                   "/plots/cable_tension_n/right/cable_2_2"):
+                   "/plots/tension_n/right/cable_2_2"):
         assert entity in text, entity
 
 

@@ -145,7 +145,7 @@ def export_rerun(run_dir: Path, out: Path) -> dict[str, Any]:
         columns(f"plots/tool_centre_error_mm/{arm}", rr.Scalars.columns(scalars=error_mm))
         names = arm_cable_names(arm, a.cable_tension.shape[1] // 3)  # "<arm>/cable_<section>_<k>", the model's names
         for c, name in enumerate(names):
-            columns(f"plots/cable_tension_n/{name}", rr.Scalars.columns(scalars=a.cable_tension[:, c]))
+            columns(f"plots/tension_n/{name}", rr.Scalars.columns(scalars=a.cable_tension[:, c]))
     columns("world/sample", rr.Points3D.columns(positions=tr.sample_pos, radii=np.full(n, 0.006), colors=[(208, 128, 80)] * n))
     columns("plots/spindle_speed_rad_s", rr.Scalars.columns(scalars=tr.spindle_speed))
     columns("plots/cells_remaining", rr.Scalars.columns(scalars=tr.cells_remaining.astype(float)))
