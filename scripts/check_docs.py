@@ -12,6 +12,10 @@ A number in README.md or docs/*.md is tied to the command that gives it by an HT
   tests/test_plant.py -> 13 tests -->``. The command's last stdout line must equal the value
   after ``->``, and that value must also appear in the same line's text before the marker (so
   the prose and the check cannot drift apart).
+* a number from a command that prints JSON (as ``continuum-sim replay`` does):
+  ``9.22 <!-- check: continuum-sim replay REC.csv --out /tmp/x | position_error_mm.rms:.2f -> 9.22 -->``;
+  the first JSON object in the command's stdout, the dotted key, formatted with the format
+  spec. Markers naming the same command run it once.
 * a block (a table): ``<!-- check-block: python scripts/sweep_table.py SPEC -->`` on its own
   line; the lines after it up to the first blank line must equal the command's stdout.
 
@@ -24,6 +28,7 @@ and no marker. Exit 0 when every check matches, 1 otherwise (each mismatch print
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shlex
@@ -82,20 +87,51 @@ def _argv(command: str) -> list[str]:
     return argv
 
 
+_OUTPUTS: dict[tuple[str, str], subprocess.CompletedProcess] = {}  # (root, command) -> its run: each command runs once
+
+
+def _execute(command: str, root: Path) -> subprocess.CompletedProcess | str:
+    key = (str(root), command)
+    if key not in _OUTPUTS:
+        env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+        env.setdefault("MUJOCO_GL", "egl")
+        try:
+            _OUTPUTS[key] = subprocess.run(_argv(command), cwd=root, env=env, capture_output=True, text=True, timeout=TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            return f"timed out after {TIMEOUT_S} s"
+    return _OUTPUTS[key]
+
+
+def _json_value(stdout: str, key: str, spec: str) -> str:
+    """``key`` (dotted) of the first JSON object in ``stdout``, formatted with ``spec``."""
+    start = stdout.find("{")
+    if start < 0:
+        raise ValueError("the command printed no JSON object")
+    value = json.JSONDecoder().raw_decode(stdout[start:])[0]
+    for part in key.split("."):
+        value = value[part]
+    return format(value, spec)
+
+
 def run(check: Check, root: Path = ROOT) -> str | None:
     """None when the check holds, else what is wrong (the command runs in ``root``)."""
     if not check.block and check.expected not in check.text_before:
         return f"the marker's value {check.expected!r} is not in the text before it"
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    env.setdefault("MUJOCO_GL", "egl")
-    try:
-        done = subprocess.run(_argv(check.command), cwd=root, env=env, capture_output=True, text=True, timeout=TIMEOUT_S)
-    except subprocess.TimeoutExpired:
-        return f"timed out after {TIMEOUT_S} s"
+    command, _, extract = check.command.partition(" | ")
+    done = _execute(command.strip(), root)
+    if isinstance(done, str):
+        return done
     if done.returncode != 0:
         return f"exit {done.returncode}: {done.stderr.strip().splitlines()[-1:] or done.stdout.strip()[-200:]}"
     out = done.stdout.strip()
-    got = out if check.block else (out.splitlines() or [""])[-1].strip()
+    if extract:
+        key, _, spec = extract.strip().partition(":")
+        try:
+            got = _json_value(out, key, spec)
+        except (ValueError, KeyError, TypeError) as exc:
+            return f"{extract.strip()}: {type(exc).__name__}: {exc}"
+    else:
+        got = out if check.block else (out.splitlines() or [""])[-1].strip()
     if got != check.expected.strip():
         return f"the docs say\n{check.expected}\nthe command gives\n{got}"
     return None

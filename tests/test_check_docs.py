@@ -39,5 +39,20 @@ def test_inline_and_block_markers_pass_when_true_and_fail_when_stale(tmp_path):
     assert "the docs say\n| a |\n| 1 |\nthe command gives\n| a |\n| 2 |" == results[5]
 
 
+def test_a_json_key_of_a_command_is_checked_and_the_command_runs_once(tmp_path):
+    cd = _module()
+    (tmp_path / "docs").mkdir()
+    # the command appends to runs.txt (in the folder it runs in) each time it runs
+    command = ('python -c "import json; open(\'runs.txt\', \'a\').write(\'x\'); '
+               'print(json.dumps({\'e\': {\'rms\': 9.2214}})); print(\'done\')"')
+    (tmp_path / "README.md").write_text(f"RMS 9.22 <!-- check: {command} | e.rms:.2f -> 9.22 -->\n"
+                                        f"stale 9.3 <!-- check: {command} | e.rms:.1f -> 9.3 -->; missing 1 <!-- check: {command} | e.max:g -> 1 -->\n")
+    first, stale, missing = cd.find_checks(tmp_path)
+    assert cd.run(first, tmp_path) is None
+    assert "the command gives\n9.2" in cd.run(stale, tmp_path)
+    assert "KeyError" in cd.run(missing, tmp_path)
+    assert (tmp_path / "runs.txt").read_text() == "x"  # three markers, one run
+
+
 def test_count_tests_counts_collected_items():
-    assert _module().count_tests("tests/test_check_docs.py") == "2 tests"
+    assert _module().count_tests("tests/test_check_docs.py") == "3 tests"
