@@ -57,3 +57,21 @@ def default_run(tmp_path_factory):
 
     out = tmp_path_factory.mktemp("default_run")
     return out, run_scenario(config, out, observers=[CloseupVideo()]), video_path
+
+
+@pytest.fixture(scope="session")
+def report_run(tmp_path_factory):
+    """A short run folder (first stage, with a tiny video.mp4) shared by the report tests; treat as read-only."""
+    from report_helpers import make_short_run
+
+    out = tmp_path_factory.mktemp("report_run") / "run"
+    make_short_run(out)
+    return out
+
+
+@pytest.fixture(scope="session")
+def report_sweep(tmp_path_factory):
+    """A two-variant gravity_sag sweep folder shared by the report tests; copy before changing it."""
+    from report_helpers import make_tiny_sweep
+
+    return make_tiny_sweep(tmp_path_factory.mktemp("report_sweep"))

@@ -121,10 +121,11 @@ def _run(config: ScenarioConfig, out_dir: Path | None, *, video: bool, stages: t
 
 
 class _Clock:
-    """Wall-clock laps for ``wall_breakdown_s`` (machine-dependent; never compared)."""
+    """Wall-clock laps for ``wall_breakdown_s`` and the run's CPU time (machine-dependent; never compared)."""
 
     def __init__(self) -> None:
         self.start = self.last = time.perf_counter()
+        self.cpu_start = time.process_time()
         self.laps: dict[str, float] = {}
 
     def lap(self, name: str) -> None:
@@ -229,6 +230,7 @@ def make_trajectory(series: dict[str, np.ndarray], handles: SceneHandles, plan: 
         cell_removal_times=c.removal_time.copy(), detach_time=c.detach_time, stages_run=stages_run,
         cutting=cutter.cutting.record().arrays(),
         failure=failure, wall_breakdown_s=dict(clock.laps), wall_seconds=clock.last - clock.start,
+        cpu_seconds=time.process_time() - clock.cpu_start,
     )
 
 

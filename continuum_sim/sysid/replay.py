@@ -257,8 +257,9 @@ def write_replay_folder(out: Path, config: ScenarioConfig, rec: Recording, pred:
         arrays["orientation_error_deg"] = ang
     atomic_write_bytes(out / "trajectory.npz", npz_bytes(arrays))  # no entry dates: same replay, same bytes
     e = metrics["position_error_mm"]
+    robot = rec.info.source.split(" (")[0] if rec.info.source else f"{rec.arm} arm"  # an imported robot by its own name
     plot_paths(rec, {label: pred}, out / "plots" / "tool_paths.png",
-               f"{rec.arm} arm replay: position error mean {e['mean']:.3g} / RMS {e['rms']:.3g} / max {e['max']:.3g} mm")
+               f"{robot} replay: position error mean {e['mean']:.3g} / RMS {e['rms']:.3g} / max {e['max']:.3g} mm")
 
 
 def run_replay(config: ScenarioConfig, rec: Recording, out: str | os.PathLike[str]) -> dict[str, Any]:
