@@ -30,7 +30,7 @@ from . import kinematics as kin
 from .configio import ConfigError, atomic_write_bytes, require_positive, require_range
 from .distances import polyline_distance
 from .geometry import ArmGeometry
-from .ik import IKOptions, StepLimits, _to_arm_frame, get_solver, interpolate_pose, interpolate_q, solve_ik, solve_path
+from .ik import IKOptions, StepLimits, get_solver, interpolate_pose, interpolate_q, solve_ik, solve_path, to_arm_frame
 from .layout import TaskLayout
 from .workspace import UnreachableError, check_poses
 
@@ -344,7 +344,7 @@ def gripper_poses(layout: TaskLayout, cfg: PlanConfig) -> dict[str, Array]:
 def _nearest_solution(planner: _ArmPlanner, pose: Array, q_ref: Array, cfg: PlanConfig) -> Array:
     """IK of ``pose`` among the cold-start solutions, the one nearest ``q_ref`` in bending coordinates."""
     solver = get_solver(planner.geometry, planner.orientation, planner.phase, planner.mount.tool, 0.0, cfg.ik)  # type: ignore[arg-type]
-    target = _to_arm_frame(pose, planner.base)
+    target = to_arm_frame(pose, planner.base)
     X = solver.seed_table()[0]
     best = None
     for idx in solver._seed_order(target)[: max(cfg.ik.n_starts, 24)]:
