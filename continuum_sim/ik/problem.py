@@ -67,6 +67,7 @@ class IKProblem:
         self.n_vars = self.S if phase == "planar" else 2 * self.S
         self._cpsi, self._spsi = math.cos(self.plane_angle), math.sin(self.plane_angle)
         self.reach = geometry.length + self.tool_length
+        self._diag = (np.arange(self.n_vars), np.arange(self.n_vars))  # the normal matrix's diagonal, for damping
         # The last configuration's FK and Jacobian (they do not depend on the target): a solve
         # warm-started from the previous solution reuses them. Not thread-safe; one per thread.
         self._fk_cache: tuple | None = None

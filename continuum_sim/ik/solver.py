@@ -17,12 +17,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import kinematics as kin
-from ..geometry import ArmGeometry
-from .options import Array, IKOptions, Orientation, Phase
+from .options import Array
 from .problem import IKProblem
 
 # LAPACK's Cholesky routines (a tenth of np.linalg.solve's call overhead on 6×6), loaded by
-# the first solver: importing scipy costs ~0.3 s, which loading a configuration should not pay.
+# the first solve: importing scipy costs ~0.3 s, which loading a configuration should not pay.
 _dposv: Any = None
 _dpotrf: Any = None
 _dpotrs: Any = None
@@ -81,22 +80,11 @@ class IKSolver(IKProblem):
     solve many targets without even the cache lookup.
     """
 
-    def __init__(
-        self,
-        geometry: ArmGeometry,
-        orientation: Orientation = "full",
-        phase: Phase = "free",
-        tool_length: float = 0.0,
-        plane_angle: float = 0.0,
-        options: IKOptions | None = None,
-    ) -> None:
-        super().__init__(geometry, orientation, phase, tool_length, plane_angle, options)
-        _load_lapack()
-        self._diag = (np.arange(self.n_vars), np.arange(self.n_vars))
-        self._seeds: tuple[Array, Array, Array] | None = None
-        # The last solution as (q, x): ``solve_ik`` warm-started from it reuses x instead of
-        # recomputing it from q. Not thread-safe; one solver per thread.
-        self.last_solution: tuple[Array, list[float]] | None = None
+    # Set per instance on first use: the cold-start seed table (``seed_table``), and the last
+    # solution as (q, x), which ``solve_ik`` warm-started from it reuses instead of recomputing
+    # x from q. Not thread-safe; one solver per thread.
+    _seeds: tuple[Array, Array, Array] | None = None
+    last_solution: tuple[Array, list[float]] | None = None
 
     # ---------------------------------------------------------------- LM core
     TAU = 1e-10  # initial damping relative to the largest diagonal entry of JᵀJ
@@ -267,6 +255,7 @@ class IKSolver(IKProblem):
         With ``x0`` the solve is warm-started there; ``fallback`` then allows cold starts
         if the warm start fails.
         """
+        _load_lapack()
         tgt = self._prepare(target)
         opts = self.options
         step = opts.max_step_rad if max_step is None else max_step
@@ -303,6 +292,7 @@ class IKSolver(IKProblem):
         For a caller that picks a solution branch itself (the planner: the one nearest a
         reference shape) rather than the first that converges.
         """
+        _load_lapack()
         tgt = self._prepare(target)
         X = self.seed_table()[0]
         for idx in self._seed_order(target)[:n_starts]:
