@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from .. import kinematics as kin
 from ..geometry import ArmGeometry
@@ -49,7 +49,7 @@ class Move:
     cutting: bool = False
     phase_free_below: float = math.radians(3.0)
 
-    def q_at(self, tau: Array) -> Array:
+    def q_at(self, tau: ArrayLike) -> Array:
         """Configurations at local times ``tau`` ∈ [0, duration]."""
         tau = np.asarray(tau, dtype=float)
         if self.duration <= 0.0 or np.allclose(self.q_start, self.q_end) and self.knots_q is None:

@@ -8,7 +8,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..distances import polyline_distance
+from ..geometry import ArmGeometry
+from ..layout import TaskLayout
 from .clearance import arm_clearance, plate_clearance, sample_box_gaps
+from .config import PlanConfig
 from .poses import grinder_poses
 from .task_plan import SEGMENT_NAMES, STAGE_NAMES
 
@@ -28,7 +31,9 @@ def _closest(name: str, gaps: Array, samples: Array, cat: dict) -> dict:
     }
 
 
-def plan_metrics(geometry, layout, cfg, cat, q_left, q_right, tcp_left, tcp_right, waypoints) -> dict:
+def plan_metrics(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig, cat: dict[str, np.ndarray], q_left: Array,
+                 q_right: Array, tcp_left: Array, tcp_right: Array, waypoints: dict[str, dict]) -> dict:
+    """The figures ``TaskPlan.metrics`` holds, from the sampled plan (``cat``: the concatenated samples)."""
     clearance = arm_clearance(geometry, layout, cfg, q_left, q_right)
     cutting = cat["cutting"]
     # From the retrieval on, the cut-off sample travels with the gripper: keep it clear of the

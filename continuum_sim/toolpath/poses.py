@@ -28,7 +28,7 @@ def grinder_poses(layout: TaskLayout, cfg: PlanConfig) -> dict[str, Array]:
     kerf = plate.kerf_polyline()
     z = plate.top_z + plate.cut_overtravel
 
-    def pose(x, y):
+    def pose(x: float, y: float) -> Array:
         T = np.eye(4)
         T[:3, 3] = (x, y, z)
         return T

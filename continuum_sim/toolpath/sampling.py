@@ -7,6 +7,10 @@ from numpy.typing import NDArray
 
 from .. import kinematics as kin
 from ..configio import ConfigError
+from ..geometry import ArmGeometry
+from ..layout import TaskLayout
+from .config import PlanConfig
+from .moves import Move
 from .plan_metrics import plan_metrics
 from .task_plan import SEGMENT_NAMES, TaskPlan
 
@@ -27,7 +31,8 @@ def check_plan_samples(n_samples: int, duration_s: float, rate_hz: float, longes
         )
 
 
-def sample_plan(geometry, layout, cfg, timeline, qL0, qR0, waypoints) -> TaskPlan:
+def sample_plan(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig, timeline: list[tuple[int, list[Move]]],
+                qL0: Array, qR0: Array, waypoints: dict[str, dict]) -> TaskPlan:
     """Lay the stages end to end and sample both arms at the plan rate."""
     dt = 1.0 / cfg.sample_rate_hz
     # Refuse an absurd plan (a 1e-7 m/s cut: 10^8 samples, gigabytes) before allocating it.
