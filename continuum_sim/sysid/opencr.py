@@ -4,10 +4,10 @@ A session folder holds CSV files with the header ``timestamp`` (Unix s), ``patte
 one ``servo_<id>_mm`` column per tendon (tendon displacement, mm) and ``tip_x/y/z`` (mm).
 File names do not matter: each CSV's kind comes from its header and its labels —
 
-* ``tendon_pull``: every row is a single-tendon pull ``rep<N>_tendon<X>_id<Y>_pull``;
+* ``tendon_pull``: every row is a single-tendon pull ``rep<N>_tendon<X>_id<Y>_pull`` (or its ``_hold``);
 * ``train``: pull rows and motion patterns;
 * ``val``: motion patterns only (no pull rows);
-* ``session``: the whole session, i.e. its time stamps contain another file's (written
+* ``session``: the whole session, i.e. its time stamps contain a pattern file's (written
   only when nothing else covers it); a CSV without the OpenCR header is skipped (named).
 
 Conventions (from the OpenCR-MuJoCo repository, ContinuumRoboticsLab/opencr-mujoco @ 17fff8b,
@@ -40,6 +40,7 @@ from .data import Recording, RecordingInfo, write_recording
 
 Array = NDArray[np.float64]
 PULL = re.compile(r"^rep\d+_tendon(\d+)_id(\d+)_pull$")
+PULL_ROW = re.compile(r"^rep\d+_tendon\d+_id\d+_pull(_hold)?$")  # a pull or its hold
 SERVO = re.compile(r"^servo_(\d+)_mm$")
 TENDONS_PER_SECTION = 3
 KINDS = ("tendon_pull", "train", "val", "session")
@@ -58,7 +59,7 @@ class Session:
 
     @property
     def pulls(self) -> NDArray[np.bool_]:
-        return np.array([PULL.match(label) is not None for label in self.labels])
+        return np.array([PULL_ROW.match(label) is not None for label in self.labels])
 
 
 def is_session_header(header: list[str]) -> bool:
@@ -108,7 +109,7 @@ def classify(sessions: list[Session]) -> dict[Path, str]:
     stamps = [set(np.round(s.time, 6).tolist()) for s in sessions]
     kinds: dict[Path, str] = {}
     for i, s in enumerate(sessions):
-        covers = any(j != i and stamps[j] < stamps[i] for j in range(len(sessions)))
+        covers = any(j != i and stamps[j] < stamps[i] and not sessions[j].pulls.all() for j in range(len(sessions)))
         pulls = s.pulls
         if covers:
             kinds[s.path] = "session"
