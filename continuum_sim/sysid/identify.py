@@ -240,6 +240,9 @@ def fit_warnings(report: dict[str, Any], params: list[FitParameter], v0: Array, 
     """What makes a fit not to be trusted as it stands: bounds, no movement, the evaluation limit."""
     out = []
     for p, d in zip(params, report["details"].values()):
+        if p.initial in (p.low, p.high):
+            out.append(f"{p.path} started on its bound ({p.initial:.6g} in [{p.low:.6g}, {p.high:.6g}]): "
+                       "a start inside the bounds (or --starts N) tests the fit properly")
         if d["at_bound"]:
             out.append(f"{p.path} ended at its bound ({d['value']:.6g} in [{p.low:.6g}, {p.high:.6g}]): widen the bounds or fix it")
         if not d["identifiable"]:

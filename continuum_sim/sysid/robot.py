@@ -97,7 +97,7 @@ def convert(data: dict[str, Any], name: str = "robot") -> tuple[dict[str, Any], 
             raise ConfigError(f"actuation_details.segments[{k}].number_of_tendons",
                               f"the model drives every section with 3 tendons (got {seg.get('number_of_tendons')})")
     hole = [float(seg["distance_to_backbone"]) for seg in segs]
-    mapped.append("actuation_details.segments[*].distance_to_backbone -> arm.cable_hole_radius (per section when they differ)")
+    mapped.append("actuation_details.segments[*].distance_to_backbone -> arm.sections.*.cable_hole_radius (arm.cable_hole_radius: the largest)")
     props = _get(data, "actuator_properties", name)
     if props.get("tendon_actuator_type", "position") != "position":
         raise ConfigError("actuator_properties.tendon_actuator_type", "only position (length-controlled) tendons replay here")
@@ -132,9 +132,8 @@ def convert(data: dict[str, Any], name: str = "robot") -> tuple[dict[str, Any], 
             "cable_angles_deg": [round(x, 4) for x in angles], "max_bend_deg": a["arm.sections.*.max_bend_deg"][0],
             "cable_gain_scale": float(kp_sec[k].mean() / kp),
             "extra_pretension": float(pre_sec[k].mean() - base_pre),
+            "cable_hole_radius": hole[k],  # per section, so it can be fitted per section
         }
-        if not uniform_hole:
-            sec["cable_hole_radius"] = hole[k]
         sections.append(sec)
     spread = [k for k in range(n) if np.ptp(kp_sec[k]) > 1e-9 * kp or np.ptp(pre_sec[k]) > 1e-9]
     notes = [f"section {k}: tendons differ in kp or pretension; the section mean is used" for k in spread]
