@@ -231,12 +231,12 @@ def identify(config: ScenarioConfig, rec: Recording, params: list[FitParameter],
                                  "runs": [{"start": (v0 + p * x_scale).tolist(), "end": (v0 + r.x * x_scale).tolist(),
                                            "cost": float(r.cost), "nfev": int(r.nfev), "status": int(r.status)}
                                           for p, r in zip(points, runs)]}
-    report["warnings"] = fit_warnings(report, params, v0, values, sol.status, max_nfev, lo, hi, move_tol)
+    report["warnings"] = fit_warnings(report, params, v0, values, sol.status, max_nfev, move_tol)
     return FitResult(params, values, report, fitted, before, after)
 
 
 def fit_warnings(report: dict[str, Any], params: list[FitParameter], v0: Array, values: Array, status: int,
-                 max_nfev: int, lo: Array, hi: Array, move_tol: float) -> list[str]:
+                 max_nfev: int, move_tol: float) -> list[str]:
     """What makes a fit not to be trusted as it stands: bounds, no movement, the evaluation limit."""
     out = []
     for p, d in zip(params, report["details"].values()):
