@@ -12,7 +12,7 @@ session is (Unix time stamps, shuffled servo ids in the column order, mm, labels
 * Gaussian noise 0.2 mm per axis on the tip.
 
 Run from the repository root: ``python validation/synthetic_tdcr3/make_session.py``
-(writes ``validation/synthetic_tdcr3/session/``; a test checks the files are fresh).
+(writes ``validation/synthetic_tdcr3/session/``; seeded, so a rerun gives the same files).
 """
 
 from __future__ import annotations
