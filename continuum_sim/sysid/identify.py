@@ -280,10 +280,13 @@ def _report(params: list[FitParameter], v0: Array, values: Array, r0: Array, r1:
     weak = rel < 1e-8
     weak_dirs = vt[weak]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        cov, half = mj_sysid.calculate_intervals([r1], J)
+        # on column-normalised J (parameters in units of their column norm: JᵀJ well
+        # conditioned whatever the parameters' units), then back to the parameters' units
+        cov_n, half_n = mj_sysid.calculate_intervals([r1], Jn)
+        cov = cov_n / np.outer(scale, scale)
+        half = np.asarray(half_n, dtype=float) / scale
         std = np.sqrt(np.abs(np.diag(cov)))
         corr = cov / np.outer(std, std)
-    half = np.asarray(half, dtype=float)
     width = np.array([p.high - p.low for p in params])
     effect = np.linalg.norm(J, axis=0) * 0.1 * width / math.sqrt(max(1, m))  # RMS residual change, mm
     per: dict[str, Any] = {}
