@@ -45,6 +45,11 @@ def test_import_detects_kinds_sections_and_source(imported: Path, capsys) -> Non
     # servo columns are in id order in the files; the pull labels map them back to tendon order
     pull = read_recording(imported / "tendon_pull.recording.csv")
     assert np.argmin(pull.commands[3]) == 0 and np.argmin(pull.commands[10]) == 1
+    # and the held-out file (no pull labels of its own) uses the pull file's mapping
+    ids = [3, 1, 7, 2, 9, 4, 8, 6, 5]  # make_session.SERVO_IDS: servo of tendon 0..8
+    header, first = (ROBOT3 / "session" / "tdcr3_A_heldout.csv").read_text().splitlines()[:2]
+    cells = dict(zip(header.split(","), first.split(",")))
+    np.testing.assert_allclose(val.commands[0], [-float(cells[f"servo_{i}_mm"]) / 1000.0 for i in ids])
     config = ScenarioConfig.from_toml(imported / "robot.toml")
     assert config.arm.n_sections == 3 and config.arm.backbone == "rod"
     np.testing.assert_allclose([s.cable_gain_scale for s in config.arm.sections], [3.0, 3.0, 2.5])  # kp array / kp

@@ -175,9 +175,14 @@ def tendon_angles_deg(labels: list[str], tip: Array, n_tendons: int) -> Array:
 
 
 def to_recording(s: Session, neutral: Array, source: str, settle_s: float = 0.3,
-                 marker_offset: tuple[float, float, float] = (0.0, 0.0, 0.0), arm: str = "left") -> Recording:
-    """The session as a recording of ``arm`` (capture frame shifted so the robot's axis is z)."""
-    order = tendon_order(s)
+                 marker_offset: tuple[float, float, float] = (0.0, 0.0, 0.0), arm: str = "left",
+                 servo_names: list[str] | None = None) -> Recording:
+    """The session as a recording of ``arm`` (capture frame shifted so the robot's axis is z).
+
+    ``servo_names``: the servo column of each tendon 0..S-1 (from the pull file's labels: a
+    file without pulls cannot tell); default: this file's own labels, else its column order.
+    """
+    order = tendon_order(s) if servo_names is None else [s.servo.index(n) for n in servo_names]
     delta = -s.commands[:, order] / 1000.0
     shift = np.array([neutral[0] / 1000.0 - marker_offset[0], neutral[1] / 1000.0 - marker_offset[1], 0.0])
     pos = s.tip / 1000.0 - shift
@@ -233,6 +238,7 @@ def import_folder(folder: str | os.PathLike[str], out: str | os.PathLike[str], s
     pull = pulls[0]
     neutral = neutral_tip(pull)
     angles = tendon_angles_deg(pull.labels, pull.tip, len(pull.servo))
+    servo_names = [pull.servo[i] for i in tendon_order(pull)]  # the same mapping for every file
     name = source_name(folder, [s.path for s in sessions])
     out = Path(out)
     written: dict[str, Path] = {}
@@ -244,7 +250,7 @@ def import_folder(folder: str | os.PathLike[str], out: str | os.PathLike[str], s
             continue
         key = kind if kind not in written else f"{kind}_{s.path.stem}"
         rec = to_recording(s, neutral, f"{name} ({s.path.name}, {kind}), imported by continuum-sim import-recording",
-                           settle_s, marker_offset)
+                           settle_s, marker_offset, servo_names=servo_names)
         written[key] = write_recording(rec, out / f"{key}.recording.csv", (
             f"OpenCR session {name}: {s.path.name} ({kind}; {n_sections} sections x 3 tendons)",
             f"neutral marker from {pull.path.name}: ({neutral[0]:.3f}, {neutral[1]:.3f}, {neutral[2]:.3f}) mm",
