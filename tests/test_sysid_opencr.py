@@ -118,10 +118,10 @@ def tiny(imported: Path, tmp_path_factory) -> tuple[Path, Path]:
     return path, robot
 
 
-def _identify(tiny, tmp_path: Path, fit: str, strict: bool) -> tuple[int, dict]:
+def _identify(tiny, tmp_path: Path, fit: str, strict: bool, extra: tuple[str, ...] = ()) -> tuple[int, dict]:
     data, robot = tiny
     argv = ["identify", str(data), "--config", str(robot), "--fit", fit, "--max-nfev", "4", "--quiet",
-            "--out", str(tmp_path / "id")] + (["--strict"] if strict else [])
+            "--out", str(tmp_path / "id"), *extra] + (["--strict"] if strict else [])
     code = main(argv)
     return code, json.loads((tmp_path / "id" / "report.json").read_text())
 
@@ -143,3 +143,15 @@ def test_fit_that_cannot_move_is_reported_and_fails_strict(tiny, tmp_path: Path,
     assert report["rmse_before_mm"] == report["rmse_after_mm"]
     code, _ = _identify(tiny, tmp_path, "model.grinder_mass", strict=True)
     assert code == 1
+
+
+def test_multi_start_is_seeded_sobol_and_keeps_the_best(tiny, tmp_path: Path, capsys) -> None:
+    code, report = _identify(tiny, tmp_path, "arm.sections.1.stiffness_scale=0.5:2", strict=False,
+                             extra=("--starts", "3", "--seed", "7"))
+    runs = report["multi_start"]["runs"]
+    assert code == 0 and len(runs) == 3 and runs[0]["start"] == [1.0]
+    assert all(0.5 <= r["start"][0] <= 2.0 for r in runs) and len({r["start"][0] for r in runs}) == 3
+    assert report["parameters"]["arm.sections.1.stiffness_scale"] == min(runs, key=lambda r: r["cost"])["end"][0]
+    _, again = _identify(tiny, tmp_path, "arm.sections.1.stiffness_scale=0.5:2", strict=False,
+                         extra=("--starts", "3", "--seed", "7"))
+    assert [r["start"] for r in again["multi_start"]["runs"]] == [r["start"] for r in runs]  # seeded
