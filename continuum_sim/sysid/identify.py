@@ -267,7 +267,11 @@ def _report(params: list[FitParameter], v0: Array, values: Array, r0: Array, r1:
     its bound width moving the residuals by < 1e-3 mm RMS (the data cannot move it), a
     95 % interval wider than its value, or a correlation above 0.999 with another.
     """
-    from mujoco import sysid as mj_sysid
+    import importlib
+
+    # imported by name: mujoco/sysid ships a py.typed marker, and mypy following it would
+    # take the whole (stub-less) mujoco package for typed and reject its C attributes
+    mj_sysid = importlib.import_module("mujoco.sysid")
 
     m, n = J.shape
     dof = max(1, m - n)
