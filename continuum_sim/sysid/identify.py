@@ -9,10 +9,12 @@ orientations, the orientation errors in degrees times ``orientation_weight`` (mm
 
 The optimiser (scipy ``least_squares``, trust-region reflective, bounded) works on
 scaled variables x = (value − initial)/scale; its finite-difference Jacobian columns are
-replayed together in one batched ``mujoco.rollout`` call on ``nthread`` threads.
-Uncertainty: cov = s²(JᵀJ)⁻¹ with s² = 2·cost/(m − n); a parameter is reported as not
-identifiable when JᵀJ is rank-deficient in it (relative singular value < 1e-8), when its
-95 % interval is wider than its value, or when it is correlated with another above 0.999.
+replayed together (one batched ``mujoco.rollout`` call on ``nthread`` threads, or one
+process per replay with cable friction). Optionally a seeded Sobol multi-start. The
+report (``_report``, ``fit_warnings``) says what the data cannot tell: 95 % intervals
+from ``mujoco.sysid.calculate_intervals``, singular values and correlations of J,
+parameters the data cannot move, and fits that started or ended on a bound, changed
+nothing or stopped on the evaluation limit (``--strict`` turns these into exit 1).
 """
 
 from __future__ import annotations
