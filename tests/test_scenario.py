@@ -21,9 +21,9 @@ DATA = Path(__file__).parent / "data"
 
 
 @pytest.fixture(scope="module")
-def closed_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("closed")
-    return out, run_scenario(ScenarioConfig.default(), out)
+def closed_run(default_run):
+    out, metrics, _ = default_run  # the session's default run (conftest.py)
+    return out, metrics
 
 
 def test_closed_loop_scenario_meets_the_task(closed_run):

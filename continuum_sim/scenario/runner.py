@@ -44,10 +44,10 @@ from .simulate import (
     ProgressObserver,
     Recorder,
     Simulation,
-    VideoObserver,
     simulate,
 )
 from .trajectory import ArmTrajectory, Trajectory
+from .video_observer import VideoObserver
 
 
 class SimulationDiverged(RuntimeError):
@@ -94,6 +94,7 @@ def _run(config: ScenarioConfig, out_dir: Path | None, *, video: bool, stages: t
     sim.render_model = render_model
     every = round(1.0 / (config.simulation.record_hz * sim.control_period))
     cutter = CutterObserver(sim, every)
+    sim.cutter = cutter.cutter  # what observers show of the cut (the video's kerf and overlay)
     recorder = Recorder(every, cutter)
     friction = CableFrictionObserver(config.model.cable_friction, recorder.every)  # acts inside mj_step
     hooks: list[Observer] = [cutter, recorder, friction, *observers, HealthCheck()]
@@ -120,10 +121,11 @@ def _run(config: ScenarioConfig, out_dir: Path | None, *, video: bool, stages: t
 
 
 class _Clock:
-    """Wall-clock laps for ``wall_breakdown_s`` (machine-dependent; never compared)."""
+    """Wall-clock laps for ``wall_breakdown_s`` and the run's CPU time (machine-dependent; never compared)."""
 
     def __init__(self) -> None:
         self.start = self.last = time.perf_counter()
+        self.cpu_start = time.process_time()
         self.laps: dict[str, float] = {}
 
     def lap(self, name: str) -> None:
@@ -228,6 +230,7 @@ def make_trajectory(series: dict[str, np.ndarray], handles: SceneHandles, plan: 
         cell_removal_times=c.removal_time.copy(), detach_time=c.detach_time, stages_run=stages_run,
         cutting=cutter.cutting.record().arrays(),
         failure=failure, wall_breakdown_s=dict(clock.laps), wall_seconds=clock.last - clock.start,
+        cpu_seconds=time.process_time() - clock.cpu_start,
     )
 
 

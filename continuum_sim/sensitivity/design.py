@@ -24,14 +24,6 @@ def problem(spec: SensitivitySpec) -> dict[str, Any]:
     return {"num_vars": len(spec.factors), "names": list(spec.paths), "bounds": [list(f.bounds) for f in spec.factors]}
 
 
-def n_evaluations(spec: SensitivitySpec) -> int:
-    """Rows of the sample matrix (distinct configurations may be fewer: Morris trajectories can share points)."""
-    k = len(spec.factors)
-    if spec.method == "morris":
-        return spec.morris.trajectories * (k + 1)
-    return spec.sobol.samples * (2 * k + 2 if spec.sobol.second_order else k + 2)
-
-
 def sample_matrix(spec: SensitivitySpec) -> np.ndarray:
     """The (rows, k) sample matrix in sampling space."""
     import warnings

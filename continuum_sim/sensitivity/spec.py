@@ -243,12 +243,18 @@ def parse_spec(data: dict[str, Any], spec_dir: str | os.PathLike[str] | None = N
             raise ConfigError("metrics", "a metric is listed twice")
         metrics = tuple(metrics_raw)
     spec = SensitivitySpec(base, factors, method, evaluation, metrics, morris, sobol, base_path, source_text)
-    from .design import n_evaluations
-
     n = n_evaluations(spec)
     if n > MAX_EVALUATIONS:
         raise ConfigError(method, f"{n} evaluations is more than the limit of {MAX_EVALUATIONS}")
     return spec
+
+
+def n_evaluations(spec: SensitivitySpec) -> int:
+    """Rows of the sample matrix (distinct configurations may be fewer: Morris trajectories can share points)."""
+    k = len(spec.factors)
+    if spec.method == "morris":
+        return spec.morris.trajectories * (k + 1)
+    return spec.sobol.samples * (2 * k + 2 if spec.sobol.second_order else k + 2)
 
 
 def load_spec(path: str | os.PathLike[str]) -> SensitivitySpec:
