@@ -23,7 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from continuum_sim.model.options import model_geometry
+from continuum_sim.scenario.clearance import gripper_approach_clearance
 from continuum_sim.scenario.config import ScenarioConfig
+from continuum_sim.scenario.runner import build_scene_model
 from continuum_sim.scenario.trajectory import CONTACT_KINDS, Trajectory
 from continuum_sim.toolpath import SEGMENT_NAMES, plan_task
 
@@ -39,7 +41,11 @@ def analyse(run_dir: Path) -> dict:
     key = tr.stage.astype(int) * 100 + seg
     starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
     bounds = list(zip(starts, np.r_[starts[1:], len(key)]))
-    out: dict = {"run": str(run_dir), "cables": {}}
+    out: dict = {"run": str(run_dir), "cables": {}, "planned_clearance": {}}
+    clearance = gripper_approach_clearance(config, plan, build_scene_model(config)[1])
+    for name in ("approach", "grasp"):
+        d, t, pair = clearance.min_over(SEGMENT_NAMES.index(name))
+        out["planned_clearance"][name] = {"min_mm": 1e3 * d, "t_s": t, "pair": list(pair)}
     worst = (0.0, None)
     for arm, a in tr.arms.items():
         T = a.cable_tension
@@ -105,7 +111,8 @@ def main() -> None:
         r = result[k]
         print(f"{k}: clamping error mean/max {r['clamping_error_mean_mm']:.2f}/{r['clamping_error_max_mm']:.2f} mm, "
               f"worst spike {r['worst_spike_ratio']:.2f}x ({r['worst_spike_cable']}), peak tension {r['max_cable_tension_n']:.1f} N, "
-              f"gripper contact before closure {r['max_gripper_contact_outside_closure_n']:.2f} N")
+              f"gripper contact before closure {r['max_gripper_contact_outside_closure_n']:.2f} N, planned clearance "
+              + ", ".join(f"{k} {v['min_mm']:.2f} mm at {v['t_s']:.2f} s ({v['pair'][0]})" for k, v in r["planned_clearance"].items()))
 
 
 if __name__ == "__main__":

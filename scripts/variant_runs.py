@@ -9,7 +9,6 @@ metrics kept. Output: a JSON list (name, overrides, metrics) and a markdown tabl
 from __future__ import annotations
 
 import json
-import os
 import sys
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
@@ -39,7 +38,6 @@ def key_metrics(m: dict[str, Any]) -> dict[str, Any]:
 
 
 def _run_one(name: str, overrides: Overrides, keep: str | None) -> tuple[str, dict[str, Any]]:
-    os.nice(10)
     from continuum_sim.configio import replace_path
     from continuum_sim.scenario.config import ScenarioConfig
     from continuum_sim.scenario.runner import run_scenario
