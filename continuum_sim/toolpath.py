@@ -61,7 +61,9 @@ class PlanConfig:
     lead_in: float = 0.012  # m: the cut starts this far outside the front edge (> kerf_width/2)
     lead_out: float = 0.020  # m: and ends this far beyond the side edge, where the grinder waits while the sample is carried off
     approach_length: float = 0.020  # m: horizontal approach toward the front edge before the cut start
-    pregrasp_distance: float = 0.050  # m: the gripper backs off this far from the grasp pose before the grasp (0.035 before issue 24: 2.2 mm of planned pad clearance at the transfer's end, 14.6 mm at 0.05)
+    # m: the gripper backs off this far from the grasp pose before the grasp (0.035 before issue 24;
+    # in the plate plane 35 mm leave 2.2 mm of planned pad clearance at the transfer's end, 50 mm 14.6 mm)
+    pregrasp_distance: float = 0.050
     # Direction of that back-off (and so of the straight grasp move): "plate_plane" = the tool
     # axis projected onto the plate's plane, so the open jaws slide in level with the plate
     # faces, their clearance constant; "tool_axis" = along the tilted tool axis (before issue 24:

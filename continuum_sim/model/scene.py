@@ -245,7 +245,7 @@ def _attach_tool(
         pad_tilt_deg=layout.grasp.tilt_deg,
     )
     if tool_model is None:
-        return
+        return None
     tool_mount = arm_model.find("site", "tool_mount")
     if tool_mount is None:
         raise ValueError(f"arm model {arm!r} has no 'tool_mount' site to attach the {tool} to")
