@@ -142,7 +142,7 @@ def test_same_configuration_gives_identical_metrics():
 
 
 def test_open_loop_runs_and_strays_further_than_closed(tmp_path):
-    """The gripper arm's approach (clamping stage, before its jaws touch the sample at ~4.6 s):
+    """The gripper arm's approach (clamping stage: the transfer and the grasp move; the jaws close at ~8.2 s):
     the open loop strays at least three times as far from the plan as the closed loop."""
     config = ScenarioConfig.default()
 
