@@ -1,83 +1,52 @@
-"""A sweep's results.csv as the Markdown table the docs quote (docs/cutting.md, docs/calibration.md).
+"""Run a sweep spec into a temporary folder and print its results as the Markdown table of the docs.
 
-    python scripts/sweep_table.py sweeps/cutting_band [--scale scene.foam.specific_energy=1e-6] [--only COL ...]
+    python scripts/sweep_table.py docs/sweeps/stiffness_gravity_sag.toml
 
-One row per variant in grid order: the swept parameters, then each metric (booleans as yes/no,
-the failure name, numbers to 3 significant digits). ``--scale PATH=F`` multiplies a column
-(e.g. J/m³ -> MJ/m³); ``--only`` keeps the named metric columns. ``--pivot METRIC`` prints a
-two-parameter sweep as a grid instead: rows the first swept path, columns the second, each
-cell the task outcome and METRIC (e.g. ``cut_path_deviation_mm.mean``).
+One row per variant in grid order: the swept parameters (3 significant figures), then each of
+the spec's metrics to 2 decimals. docs/sweeps.md quotes this output verbatim, and
+``scripts/check_docs.py`` reruns it (``check-block`` marker) and fails when they differ.
 """
 
 from __future__ import annotations
 
-import argparse
+import contextlib
 import csv
+import io
+import sys
+import tempfile
 from pathlib import Path
 
-BOOLEAN = ("task.completed", "sample_detached", "detached_before_cut_complete", "sample_held_at_end", "task.cables_saturated")
+HEADINGS = {  # metric -> column heading in the docs
+    "sag_mm": "sag mm", "sag_z_mm": "sag down mm", "pcc_error_mm": "tip error vs PCC mm",
+    "shape_error_mm": "error without gravity mm", "max_cable_tension_n": "max cable tension N",
+    "min_cable_tension_n": "min cable tension N",
+}
 
 
-def cell(column: str, value: str, scale: float) -> str:
-    if value == "":
-        return "–"
-    if column in BOOLEAN:
-        return "yes" if float(value) else "no"
-    try:
-        x = float(value) * scale
-    except ValueError:
-        return f"`{value}`"
-    return f"{x:.3g}"
+def table(spec_path: str) -> str:
+    from continuum_sim.cli import main
+    from continuum_sim.sweep import load_spec
 
-
-def pivot(rows: list[dict[str, str]], params: list[str], metric: str, scale: dict[str, float]) -> None:
-    """Rows: params[0]; columns: params[1]; cell: 'completed'/failure and the metric."""
-    if len(params) != 2:
-        raise SystemExit(f"--pivot needs a two-parameter sweep (this one sweeps {params})")
-    r_vals = list(dict.fromkeys(r[params[0]] for r in rows))
-    c_vals = list(dict.fromkeys(r[params[1]] for r in rows))
-    by = {(r[params[0]], r[params[1]]): r for r in rows}
-    p0, p1 = params
-    print(f"| {p0} \\ {p1} | " + " | ".join(cell(p1, c, scale.get(p1, 1.0)) for c in c_vals) + " |")
-    print("|" + "---|" * (len(c_vals) + 1))
-    for rv in r_vals:
-        cells = []
-        for cv in c_vals:
-            r = by.get((rv, cv))
-            if r is None or r.get("status", "ok") != "ok":
-                cells.append("failed" if r else "–")
-                continue
-            ok = float(r["task.completed"]) if r.get("task.completed") else 0.0
-            outcome = "**completes**" if ok else f"`{r.get('task.failure', '')}`"
-            cells.append(f"{outcome} {cell(metric, r.get(metric, ''), scale.get(metric, 1.0))}")
-        print(f"| {cell(p0, rv, scale.get(p0, 1.0))} | " + " | ".join(cells) + " |")
-
-
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("folder", type=Path)
-    ap.add_argument("--scale", action="append", default=[], help="PATH=FACTOR")
-    ap.add_argument("--only", nargs="*", default=None)
-    ap.add_argument("--pivot", default=None, metavar="METRIC")
-    args = ap.parse_args()
-    scale = {k: float(v) for k, v in (s.split("=", 1) for s in args.scale)}
-    rows = list(csv.DictReader((args.folder / "results.csv").open()))
-    header = list(rows[0])
-    params = header[header.index("variant_id") + 1: header.index("status")]  # the swept paths, in grid order
-    if args.pivot:
-        pivot(rows, params, args.pivot, scale)
-        return
-    skip = {"index", "variant_id", "status", "error", "wall_s", "cpu_s", "host", "backend", *params}
-    metrics = [c for c in rows[0] if c not in skip] if args.only is None else args.only
-    cols = params + metrics
-    print("| " + " | ".join(cols) + " |")
-    print("|" + "---|" * len(cols))
-    for r in rows:
-        if r.get("status", "ok") != "ok":
-            print("| " + " | ".join([*(r[p] for p in params), f"failed: {r.get('error', '')}"]) + " |")
-            continue
-        print("| " + " | ".join(cell(c, r.get(c, ""), scale.get(c, 1.0)) for c in cols) + " |")
+    spec = load_spec(spec_path, progress=False)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "sweep"
+        with contextlib.redirect_stdout(io.StringIO()):  # the sweep's own summary line
+            code = main(["sweep", spec_path, "--out", str(out), "--quiet"])
+        if code != 0:
+            raise SystemExit(f"sweep_table: the sweep failed (exit {code})")
+        with (out / "results.csv").open(newline="") as fh:
+            rows = list(csv.DictReader(fh))
+    params = list(spec.paths)
+    names = [p.split(".")[-1].replace("_", " ") for p in params] + [HEADINGS.get(m, m) for m in spec.metrics]
+    lines = ["| " + " | ".join(names) + " |", "|" + "---:|" * len(names)]
+    for row in rows:
+        cells = [f"{float(row[p]):.3g}" for p in params]
+        cells += ["failed" if row[m] in ("", "None") else f"{float(row[m]) + 0.0:.2f}" for m in spec.metrics]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":
-    main()
+    if len(sys.argv) != 2:
+        raise SystemExit("usage: python scripts/sweep_table.py SPEC.toml")
+    print(table(sys.argv[1]))

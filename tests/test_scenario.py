@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from model_helpers import contacts_on_a_plane
 
-from continuum_sim.model.friction import cable_tendons
+from continuum_sim.plant.cable_routing import cable_tendons
 from continuum_sim.scenario.config import ScenarioConfig, merged
 from continuum_sim.scenario.metric_compare import flatten, is_continuous, mismatches
 from continuum_sim.scenario.metrics import WALL_CLOCK_METRICS
@@ -21,9 +21,9 @@ DATA = Path(__file__).parent / "data"
 
 
 @pytest.fixture(scope="module")
-def closed_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("closed")
-    return out, run_scenario(ScenarioConfig.default(), out)
+def closed_run(default_run):
+    out, metrics, _ = default_run  # the session's default run (conftest.py)
+    return out, metrics
 
 
 def test_closed_loop_scenario_meets_the_task(closed_run):

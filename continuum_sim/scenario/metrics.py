@@ -24,7 +24,7 @@ Array = NDArray[np.float64]
 
 # Metrics that depend on the machine, not on the configuration: left out of determinism
 # comparisons and of sweep tables.
-WALL_CLOCK_METRICS = ("wall_seconds", "real_time_factor", "wall_breakdown_s")
+WALL_CLOCK_METRICS = ("wall_seconds", "wall_real_time_factor", "wall_breakdown_s", "cpu_seconds", "cpu_real_time_factor")
 
 
 def error_stats(errors_m: Array) -> dict[str, float | None]:
@@ -132,7 +132,13 @@ def compute_metrics(trajectory: Trajectory, plan: TaskPlan, config: ScenarioConf
     out["sim_seconds"] = float(tr.t[-1])
     wall = tr.wall_seconds  # None for a loaded trajectory: recompute_metrics keeps metrics.json's
     out["wall_seconds"] = None if wall is None else float(wall)
-    out["real_time_factor"] = float(tr.t[-1] / wall) if wall is not None and wall > 0 else None
+    # Simulated seconds per second: of wall time (everything, video included) and of this process's CPU time
+    # (time.process_time over plan, build, simulation and metrics; what benchmarks/scenario.py measures).
+    # Neither is saved in trajectory.npz (identical runs write identical files): None for a loaded trajectory.
+    out["wall_real_time_factor"] = float(tr.t[-1] / wall) if wall is not None and wall > 0 else None
+    cpu = tr.cpu_seconds
+    out["cpu_seconds"] = cpu
+    out["cpu_real_time_factor"] = float(tr.t[-1] / cpu) if cpu else None
     out["wall_breakdown_s"] = dict(tr.wall_breakdown_s)
     if tr.failure is not None:
         out["diverged"] = tr.failure

@@ -26,11 +26,11 @@ from ..configio import atomic_write_bytes, atomic_write_text
 from ..controllers import ControlContext, Controller, controller_spec, load_controller
 from ..distances import min_backbone_distances
 from ..limits import check_run_length, check_scenario
-from ..model.cable_path import native_cable_xml, release_data
-from ..model.friction import cable_tendons
 from ..model.handles import SceneHandles
 from ..model.options import model_geometry
 from ..model.state import set_arm_configuration
+from ..plant.cable_path import native_cable_xml, release_data
+from ..plant.cable_routing import cable_tendons
 from ..toolpath import TaskPlan, plan_task
 from . import metrics as met
 from .cable_friction import CableFrictionObserver
@@ -44,10 +44,10 @@ from .simulate import (
     ProgressObserver,
     Recorder,
     Simulation,
-    VideoObserver,
     simulate,
 )
 from .trajectory import ArmTrajectory, Trajectory
+from .video_observer import VideoObserver
 
 
 class SimulationDiverged(RuntimeError):
@@ -94,6 +94,7 @@ def _run(config: ScenarioConfig, out_dir: Path | None, *, video: bool, stages: t
     sim.render_model = render_model
     every = round(1.0 / (config.simulation.record_hz * sim.control_period))
     cutter = CutterObserver(sim, every)
+    sim.cutter = cutter.cutter  # what observers show of the cut (the video's kerf and overlay)
     recorder = Recorder(every, cutter)
     friction = CableFrictionObserver(config.model.cable_friction, recorder.every)  # acts inside mj_step
     hooks: list[Observer] = [cutter, recorder, friction, *observers, HealthCheck()]
@@ -120,10 +121,11 @@ def _run(config: ScenarioConfig, out_dir: Path | None, *, video: bool, stages: t
 
 
 class _Clock:
-    """Wall-clock laps for ``wall_breakdown_s`` (machine-dependent; never compared)."""
+    """Wall-clock laps for ``wall_breakdown_s`` and the run's CPU time (machine-dependent; never compared)."""
 
     def __init__(self) -> None:
         self.start = self.last = time.perf_counter()
+        self.cpu_start = time.process_time()
         self.laps: dict[str, float] = {}
 
     def lap(self, name: str) -> None:
@@ -179,8 +181,8 @@ def build_run_model(config: ScenarioConfig) -> tuple[Any, mujoco.MjModel, mujoco
     if config.model.cable_path == "spatial" or not config.model.tendons or config.model.joint == "ball":
         root, model = build_scene_model(config)
         return root, model, model
-    from ..model.cable_path import compile_native
     from ..model.scene import build_scene
+    from ..plant.cable_path import compile_native
 
     root = build_scene(config.arm, config.layout, config.model, config.scene)
     model, spatial = compile_native(root)
@@ -189,7 +191,7 @@ def build_run_model(config: ScenarioConfig) -> tuple[Any, mujoco.MjModel, mujoco
 
 def make_simulation(config: ScenarioConfig, plan: TaskPlan, model: mujoco.MjModel, controller: Controller) -> Simulation:
     """The run's state: both arms in the plan's first configuration, ids resolved, controller context."""
-    from ..model.cable_path import make_data
+    from ..plant.cable_path import make_data
 
     geometry = model_geometry(config.arm, config.model)
     data = make_data(model)  # registered with the native cable path when the model has one
@@ -228,6 +230,7 @@ def make_trajectory(series: dict[str, np.ndarray], handles: SceneHandles, plan: 
         cell_removal_times=c.removal_time.copy(), detach_time=c.detach_time, stages_run=stages_run,
         cutting=cutter.cutting.record().arrays(),
         failure=failure, wall_breakdown_s=dict(clock.laps), wall_seconds=clock.last - clock.start,
+        cpu_seconds=time.process_time() - clock.cpu_start,
     )
 
 
