@@ -26,7 +26,7 @@ CONTACT_OFF = {"scene.gripper_plate_contact": False}
 SLOW = {"plan.joint_speed_deg_s": 10.0, "plan.joint_accel_deg_s2": 20.0, "plan.fast_speed": 0.02, "plan.max_accel": 0.1}
 
 VARIANTS = [
-    ("as shipped", {}),
+    ("baseline", {}),
     ("gravity off", GRAVITY_OFF),
     ("μ = 0", MU_0),
     ("gripper–plate contact off", CONTACT_OFF),

@@ -95,7 +95,7 @@ def markdown_table(rows: list[dict[str, Any]]) -> str:
     lines = [head, "|" + "---|" * 8]
     for r in rows:
         m = r["metrics"]
-        ov = ", ".join(f"`{k}={v}`" for k, v in r["overrides"].items()) or "(shipped defaults)"
+        ov = ", ".join(f"`{k}={v}`" for k, v in r["overrides"].items()) or "(none)"
         outcome = "completed" if m.get("completed") else f"`{m.get('failure')}`"
         lines.append(
             f"| {r['name']} | {ov} | {outcome} | {_fmt(m.get('path_deviation_mean_mm'))} / "
