@@ -16,9 +16,11 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from ..model.names import scoped
 from ..model.options import model_geometry
 from ..model.scene import PLATE_BODY, SAMPLE_BODY
 from ..model.state import set_arm_configuration
+from ..model.tools import GRIPPER
 from ..toolpath import TaskPlan
 from .config import ScenarioConfig
 
@@ -45,10 +47,11 @@ class ApproachClearance:
 def gripper_approach_clearance(config: ScenarioConfig, plan: TaskPlan, model: mujoco.MjModel) -> ApproachClearance:
     """The planned gripper's clearance to the plate from the start of the clamping stage to the
     jaws' closing, on ``model`` (the scene of ``config``, e.g. `runner.build_scene_model`)."""
-    arm = next(a for a in ("left", "right") if config.layout.mount(a).tool == "gripper")
+    arm = config.layout.arm_for(GRIPPER)
+    prefix = scoped(arm, GRIPPER, "")  # the gripper's bodies after attachment
     data = mujoco.MjData(model)
     body_name = [model.body(b).name for b in range(model.nbody)]
-    grip = [g for g in range(model.ngeom) if f"{arm}/gripper/" in body_name[model.geom_bodyid[g]]
+    grip = [g for g in range(model.ngeom) if body_name[model.geom_bodyid[g]].startswith(prefix)
             and (model.geom_contype[g] or model.geom_conaffinity[g])]
     plate = [g for g in range(model.ngeom) if body_name[model.geom_bodyid[g]] in (PLATE_BODY, SAMPLE_BODY)
              and (model.geom_contype[g] or model.geom_conaffinity[g])]
