@@ -539,6 +539,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_validate_parser(sub)
 
+    from .params.cli import add_params_parser  # `params`: the parameter registry (docs/parameters.md)
+
+    add_params_parser(sub)
+
+    from .sensitivity.cli import add_sensitivity_parser  # `sensitivity`: Morris/Sobol' studies (docs/sensitivity.md)
+
+    add_sensitivity_parser(sub)
+
     view = sub.add_parser("view", help="open the scene in MuJoCo's interactive viewer (needs a display)")
     view.add_argument("--config", help="scenario TOML file")
     view.set_defaults(func=_cmd_view)

@@ -20,7 +20,7 @@ from continuum_sim.geometry import ArmGeometry
 from continuum_sim.scenario.config import ScenarioConfig
 
 RECORDING_DIR = Path(__file__).resolve().parents[1] / "validation" / "opencr_ftdcr_v4"
-RECORDING = str(RECORDING_DIR / "ftdcr_v4_val.recording.csv")  # a real recording (docs/sysid.md)
+RECORDING = str(RECORDING_DIR / "recordings" / "val.recording.csv")  # a real recording (docs/sysid.md)
 ROBOT = str(RECORDING_DIR / "ftdcr_v4.toml")
 
 
