@@ -11,7 +11,7 @@ import pytest
 
 from continuum_sim.configio import ConfigError, get_path
 from continuum_sim.params import REGISTRY, STATUSES, apply, parameter, records, values
-from continuum_sim.params.cli import document, render_markdown
+from continuum_sim.cli.params import document, render_markdown
 from continuum_sim.scenario.config import ScenarioConfig
 
 ROOT = Path(__file__).resolve().parents[1]

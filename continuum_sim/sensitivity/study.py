@@ -33,7 +33,7 @@ class StudySweep(SweepSpec):
     design: dict[str, Any] = field(default_factory=dict)
     samples: tuple[Variant, ...] = ()
 
-    def variants(self) -> list[Variant]:
+    def variants(self, progress: bool = False) -> list[Variant]:  # noqa: ARG002 - the samples are already built
         return list(self.samples)
 
     def identity(self) -> dict[str, Any]:

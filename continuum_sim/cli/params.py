@@ -10,7 +10,7 @@ import argparse
 import json
 from typing import Any
 
-from .registry import REGISTRY, Parameter, apply, parse_overrides, records
+from ..params.registry import REGISTRY, Parameter, apply, parse_overrides, records
 
 MARKDOWN_HEADER = """\
 # Parameters
