@@ -144,7 +144,7 @@ def test_same_configuration_gives_identical_metrics():
 
 
 def test_open_loop_runs_and_strays_further_than_closed(tmp_path):
-    """The gripper arm's approach (clamping stage, before its jaws touch the sample at ~4.6 s):
+    """The gripper arm's approach (clamping stage: the transfer and the grasp move; the jaws close at ~8.2 s):
     the open loop strays at least three times as far from the plan as the closed loop."""
     config = ScenarioConfig.default()
 
@@ -218,3 +218,32 @@ def test_recorded_normal_forces_equal_mujocos_contact_force(cone):
         expected[i] = abs(force[0])
     assert expected.min() > 0.0
     np.testing.assert_allclose(normal_forces(model, data, data.ncon), expected, rtol=1e-12, atol=1e-12)
+
+
+def test_closed_loop_grasp_has_no_knock(closed_run):
+    """Issue 24's gripper knock is gone from the default run: clamping-stage gripper error <= 5 mm
+    (was 20.8 mm), no gripper contact before the jaws close (was 3.1 N), and no cable above twice
+    its steady holding tension (the median over its plan segment, floored at the pre-tension)
+    outside grasp closure (was 2.48x: 130.5 N). The same definition as scripts/gripper_knock.py."""
+    from continuum_sim.model.options import model_geometry
+    from continuum_sim.scenario.trajectory import CONTACT_KINDS, Trajectory
+    from continuum_sim.toolpath import SEGMENT_NAMES, plan_task
+
+    out, metrics = closed_run
+    assert metrics["tip_error_mm"]["right"]["clamping"]["max"] <= 5.0
+    config = ScenarioConfig.from_toml(out / "config.toml")
+    plan = plan_task(model_geometry(config.arm, config.model), config.layout, config.plan)
+    tr = Trajectory.load(out / "trajectory.npz")
+    seg = plan.segment[tr.plan_index.astype(int)]
+    closing = seg == SEGMENT_NAMES.index("close")
+    clamping = tr.stage == list(tr.stage_names).index("clamping")
+    assert tr.contact_force[clamping & ~closing & (tr.t < tr.t[closing][0]), CONTACT_KINDS.index("gripper")].max() == 0.0
+    key = tr.stage.astype(int) * 100 + seg
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    for arm in tr.arms.values():
+        T = arm.cable_tension
+        hold = np.empty_like(T)
+        for a, b in zip(starts, np.r_[starts[1:], len(key)]):
+            hold[a:b] = np.median(T[a:b], axis=0)
+        ratio = T / np.maximum(hold, config.control.pretension)
+        assert ratio[~closing].max() <= 2.0

@@ -174,6 +174,8 @@ def apply_simulation_options(root, options: ModelOptions) -> None:
     root.option.cone = "elliptic"
     root.option.impratio = options.impratio
     root.option.jacobian = options.jacobian
+    if not options.gravity:
+        root.option.gravity = (0.0, 0.0, 0.0)
     root.compiler.angle = "radian"
     root.size.memory = "64M"
 

@@ -64,6 +64,10 @@ class ModelOptions:
     jacobian: Literal["auto", "dense", "sparse"] = "auto"  # MuJoCo's constraint Jacobian storage
     impratio: float = 100.0  # friction-to-normal impedance ratio (elliptic cones): high = little frictional creep
     tendons: bool = True  # False: joints only (for benchmarks and pure-beam tests)
+    # False: no gravity anywhere in the model (an attribution switch, docs/calibration.md:
+    # what gravity alone costs the open loop). Static evaluations that set gravity per phase
+    # (sweep gravity_sag) still do so on the compiled model.
+    gravity: bool = True
     # How a scenario run evaluates the cables (plant/cable_path.py): "native" = fixed tendons
     # whose exact lengths and Jacobians a compiled kernel writes in the passive stage (the
     # spatial tendons' numbers to ~1e-15 m, a third less CPU per step); "spatial" = MuJoCo's

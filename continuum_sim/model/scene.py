@@ -236,7 +236,7 @@ def _attach_tool(
     layout: TaskLayout,
     options: ModelOptions,
     scene: SceneOptions,
-) -> None:
+) -> mjcf.RootElement | None:
     """Attach ``tool`` at the arm's ``tool_mount`` with the arm's collision bits, so the
     tool (the cutter above all) never collides with its own arm but does with the world
     and the other arm."""
@@ -251,11 +251,12 @@ def _attach_tool(
         pad_tilt_deg=layout.grasp.tilt_deg,
     )
     if tool_model is None:
-        return
+        return None
     tool_mount = arm_model.find("site", "tool_mount")
     if tool_mount is None:
         raise ValueError(f"arm model {arm!r} has no 'tool_mount' site to attach the {tool} to")
     tool_mount.attach(tool_model)
+    return tool_model
 
 
 def _attach_arm(
@@ -271,7 +272,11 @@ def _attach_arm(
     arm_model = arm_builder(geometry, options, arm, mount.tool)
     site = root.worldbody.add("site", name=f"{arm}_mount", pos=mount.position, size=(0.004,), rgba=(0, 1, 0, 0.5), group=5)
     site.attach(arm_model)
-    _attach_tool(arm, arm_model, mount.tool, geometry, layout, options, scene)
+    tool_model = _attach_tool(arm, arm_model, mount.tool, geometry, layout, options, scene)
+    if tool_model is not None and mount.tool == "gripper" and not scene.gripper_plate_contact:
+        plate = root.worldbody.find("body", PLATE_BODY)
+        for body in tool_model.find_all("body"):
+            root.contact.add("exclude", body1=body, body2=plate)
     return arm_model
 
 

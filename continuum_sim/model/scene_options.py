@@ -174,6 +174,10 @@ class SceneOptions:
     bench_height: float = 0.75  # floor is this far below the bench top (= pack bottom)
     render_width: int = 1280
     render_height: int = 720
+    # False: the gripper's bodies pass through the fixed plate (its two boxes; the sample still
+    # collides, so the jaws can grasp it). An attribution switch (docs/calibration.md): what the
+    # gripper meeting the plate on its approach costs the open loop.
+    gripper_plate_contact: bool = True
 
     def __post_init__(self) -> None:
         require_range("sample_gap", self.sample_gap, 0.0, 0.002, low_inclusive=True)

@@ -34,7 +34,15 @@ class PlanConfig:
     lead_in: float = 0.012  # m: the cut starts this far outside the front edge (> kerf_width/2)
     lead_out: float = 0.020  # m: and ends this far beyond the side edge, where the grinder waits while the sample is carried off
     approach_length: float = 0.020  # m: horizontal approach toward the front edge before the cut start
-    pregrasp_distance: float = 0.035  # m: the gripper backs off along its tool axis before the grasp
+    # m: the gripper backs off this far from the grasp pose before the grasp (0.035 before issue 24;
+    # in the plate plane 35 mm leave 2.2 mm of planned pad clearance at the transfer's end, 50 mm 14.6 mm)
+    pregrasp_distance: float = 0.050
+    # Direction of that back-off (and so of the straight grasp move): "plate_plane" = the tool
+    # axis projected onto the plate's plane, so the open jaws slide in level with the plate
+    # faces, their clearance constant; "tool_axis" = along the tilted tool axis (before issue 24:
+    # the pads crossed the plate faces obliquely, and the joint transfer ending there drove a
+    # pad 1.7 mm into the sample edge, docs/calibration.md "The gripper knock").
+    pregrasp_direction: Literal["plate_plane", "tool_axis"] = "plate_plane"
     # m, world: sample carried away (stage 4), mostly sideways (-y) so it clears the grinder
     # housing that waits beyond the side edge, below the plate ((0.04, -0.03, -0.05) grazed it)
     carry_offset: tuple[float, float, float] = (0.02, -0.09, -0.03)
@@ -67,6 +75,8 @@ class PlanConfig:
         require_range("lead_out", self.lead_out, 0.0, 0.2)
         require_range("approach_length", self.approach_length, 0.0, 0.2, low_inclusive=True)
         require_range("pregrasp_distance", self.pregrasp_distance, 0.0, 0.3)
+        if self.pregrasp_direction not in ("plate_plane", "tool_axis"):
+            raise ConfigError("pregrasp_direction", f"must be 'plate_plane' or 'tool_axis' (got {self.pregrasp_direction!r})")
         require_range("return_offset", self.return_offset, 0.0, 0.05, low_inclusive=True)
         for i, v in enumerate(self.carry_offset):
             require_range(f"carry_offset[{i}]", v, -0.5, 0.5, low_inclusive=True)

@@ -54,10 +54,14 @@ def grinder_poses(layout: TaskLayout, cfg: PlanConfig) -> dict[str, Array]:
 
 
 def gripper_poses(layout: TaskLayout, cfg: PlanConfig) -> dict[str, Array]:
-    """Key world poses of the gripper TCP: pre-grasp (backed off along the tool axis), grasp, carried."""
+    """Key world poses of the gripper TCP: pre-grasp (backed off, ``cfg.pregrasp_direction``), grasp, carried."""
     grasp = layout.grasp_pose()
+    axis = grasp[:3, 2].copy()
+    if cfg.pregrasp_direction == "plate_plane":  # the plate is horizontal (layout.plate): drop the normal part
+        axis[2] = 0.0
+        axis /= np.linalg.norm(axis)
     pre = grasp.copy()
-    pre[:3, 3] -= cfg.pregrasp_distance * grasp[:3, 2]
+    pre[:3, 3] -= cfg.pregrasp_distance * axis
     carried = grasp.copy()
     carried[:3, 3] += np.asarray(cfg.carry_offset)
     return {"pre_grasp": pre, "grasp": grasp, "carried": carried}
