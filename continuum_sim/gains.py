@@ -209,7 +209,7 @@ def plant_gain(
     from .model.cable_elasticity import cable_stiffness
 
     k = cable_stiffness(geometry, options) if cable_k is None else np.asarray(cable_k, dtype=float)
-    scale = np.array([options.section_scale(i) for i in range(len(geometry.sections))])  # per section (broadcasts)
+    scale = options.stiffness_scale  # each section's own factor (arm.sections.k.stiffness_scale) is in its joint stiffness
     r_inv = inverse_transmission(geometry, k, scale)
     rho = np.sort(np.linalg.eigvals(np.linalg.inv(r_inv)).real)
     modes = arm_modes(geometry, options, pretension, tool_mass, tool_length)

@@ -26,12 +26,9 @@ def steps_per_tick(config: Any) -> int:
 
 
 def check_model_geometry(config: Any) -> None:
-    """The arm × model combinations: one stiffness factor per section; with ``model.segments_per_section``, disks must not overlap."""
+    """The arm × model combinations: with ``model.segments_per_section``, disks must not overlap."""
     from .model.options import model_geometry
 
-    factors, n_sections = config.model.section_stiffness_scale, len(config.arm.sections)
-    if factors and len(factors) != n_sections:
-        raise ConfigError("model.section_stiffness_scale", f"must have one factor per arm section ({n_sections}; got {len(factors)}) or be empty")
     n = config.model.segments_per_section
     if n == 0:
         return

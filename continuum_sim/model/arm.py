@@ -62,7 +62,7 @@ def section_links(geometry: ArmGeometry, options: ModelOptions) -> list[list[Lin
         section_mass = phys.n_segments * geometry.material.density * disk_volume
         if geometry.backbone == "rod":
             section_mass += geometry.rod.density * math.pi * geometry.rod.radius**2 * phys.length
-        kx, ky, kz = joint_stiffnesses(geometry, k, sec.n_segments, options.section_scale(k))
+        kx, ky, kz = joint_stiffnesses(geometry, k, sec.n_segments, options.stiffness_scale)
         if options.joint == "hinge_triple" and not math.isfinite(kz):
             raise ConfigError("model.joint", "hinge_triple needs a twist spring; arm.central_joint = 'universal' blocks twist (use hinge_pair)")
         damping = options.joint_damping * sec.n_segments / phys.n_segments

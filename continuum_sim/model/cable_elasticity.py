@@ -75,7 +75,7 @@ def stiffest_joint(geometry: ArmGeometry, options: ModelOptions) -> float:
     model_geom = model_geometry(geometry, options)
     largest = 0.0
     for index, section in enumerate(model_geom.sections):
-        kx, ky, kz = joint_stiffnesses(geometry, index, section.n_segments, options.section_scale(index))
+        kx, ky, kz = joint_stiffnesses(geometry, index, section.n_segments, options.stiffness_scale)
         twist = kz if options.joint == "hinge_triple" and math.isfinite(kz) else 0.0
         largest = max(largest, kx, ky, twist)
     return largest

@@ -28,7 +28,6 @@ class ModelOptions:
     stiffness_scale: float = 1.0  # multiplies every flexure stiffness (the design sweep knob)
     # Per-section factors (base -> tip) on top of stiffness_scale, one per arm section; empty: every section 1.
     # The design optimiser's knob (docs/optimize.md); limits.check_model_geometry checks the count.
-    section_stiffness_scale: tuple[float, ...] = ()
     joint_damping: float = 0.2  # N·m·s/rad per physical joint (hinge + ball friction, *assumed*); scaled like stiffness
     joint_armature: float = 1e-5  # kg·m², numerical regulariser for light disks
     # --- Transmission (docs/plant.md): rope, motors. ---
@@ -82,8 +81,6 @@ class ModelOptions:
             raise ConfigError("joint", f"must be 'ball', 'hinge_pair' or 'hinge_triple' (got {self.joint!r})")
         require_int("segments_per_section", self.segments_per_section, 0, 200, hint=", 0 = physical count")
         require_range("stiffness_scale", self.stiffness_scale, 0.0, 1e4)
-        for i, factor in enumerate(self.section_stiffness_scale):
-            require_range(f"section_stiffness_scale[{i}]", factor, 0.0, 1e4)
         require_range("joint_damping", self.joint_damping, 0.0, 100.0, low_inclusive=True)
         require_range("joint_armature", self.joint_armature, 0.0, 1.0, low_inclusive=True)
         if self.cable_model not in ("elastic", "lumped"):
@@ -109,10 +106,6 @@ class ModelOptions:
         if self.integrator not in ("implicitfast", "implicit", "Euler", "RK4"):
             raise ConfigError("integrator", f"must be one of implicitfast, implicit, Euler, RK4 (got {self.integrator!r})")
 
-    def section_scale(self, index: int) -> float:
-        """The flexure-stiffness factor of section ``index``: ``stiffness_scale`` times its own factor (if any)."""
-        own = self.section_stiffness_scale[index] if self.section_stiffness_scale else 1.0
-        return self.stiffness_scale * own
 
 
 def model_geometry(geometry: ArmGeometry, options: ModelOptions) -> ArmGeometry:

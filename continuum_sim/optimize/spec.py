@@ -7,7 +7,7 @@ A spec is a TOML file::
     mode = "open"
 
     [variables]                        # any numeric config path: bounds, log scale, integers
-    "model.section_stiffness_scale.0" = {low = 0.5, high = 4.0, log = true}
+    "arm.sections.0.stiffness_scale" = {low = 0.5, high = 4.0, log = true}
     "control.pretension" = {low = 15, high = 50, grid = 5}     # grid: points for sampler = "grid"
     "model.segments_per_section" = {low = 4, high = 12, int = true}
 
