@@ -265,7 +265,7 @@ class FlexureSegment:
     free_length: float
     leaf_radius: float
     leaf_angles_deg: tuple[float, ...] = (0.0, 120.0, 240.0)
-    elements: int = 12
+    elements: int = 16
     bow_fraction: float = 5e-4
 
     def __post_init__(self) -> None:
@@ -325,7 +325,7 @@ class FlexureSegment:
         return total
 
 
-def section_segment(geometry: ArmGeometry, section: SectionGeometry, elements: int = 12) -> FlexureSegment:
+def section_segment(geometry: ArmGeometry, section: SectionGeometry, elements: int = 16) -> FlexureSegment:
     """The nonlinear model of one physical segment of ``section`` (leaf fields, material)."""
     leaf = LeafSection(section.hinge_width, section.hinge_thickness, geometry.material.youngs_modulus,
                        geometry.material.poisson_ratio)
