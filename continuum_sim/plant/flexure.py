@@ -81,6 +81,7 @@ def section_curve(geometry: ArmGeometry, section: SectionGeometry) -> SectionCur
                 local[:, 0] *= -1.0
             total[k, :, 0] += c * local[:, 0] - s * local[:, 1]
             total[k, :, 1] += s * local[:, 0] + c * local[:, 1]
+    total[:, 0, :] = 0.0  # no moment at zero rotation (the solver's values there are difference noise, ~1e-13 N·m)
     kx, ky, _ = segment_stiffness(geometry, section)
     direction = np.stack([np.cos(phi), np.sin(phi)], axis=1)
     linear = theta[None, :, None] * direction[:, None, :] * np.array([kx, ky])

@@ -336,6 +336,15 @@ def section_segment(geometry: ArmGeometry, section: SectionGeometry, elements: i
 TABLE_VERSION = 1  # bump when the solver or the grid changes: invalidates the on-disk cache
 
 
+SHIPPED = Path(__file__).resolve().parent.parent / "data" / "flexure"  # the default arm's tables (scripts/flexure_tables.py)
+
+
+def table_name(segment: FlexureSegment, theta_max: float, n_theta: int, n_psi: int) -> str:
+    """The file name of a leaf table: a hash of every input."""
+    key = repr((TABLE_VERSION, segment, float(theta_max), int(n_theta), int(n_psi))).encode()
+    return f"{hashlib.sha256(key).hexdigest()[:24]}.npz"
+
+
 def _cache_dir() -> Path:
     root = os.environ.get("CONTINUUM_SIM_CACHE") or os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "continuum_sim")
     return Path(root) / "flexure"
@@ -350,17 +359,18 @@ def leaf_table(segment: FlexureSegment, theta_max: float, n_theta: int, n_psi: i
     suffices. Cached in memory and on disk (``$CONTINUUM_SIM_CACHE`` or
     ``~/.cache/continuum_sim/flexure``), keyed by every input; a cold table takes seconds.
     """
-    key = repr((TABLE_VERSION, segment, float(theta_max), int(n_theta), int(n_psi))).encode()
-    path = _cache_dir() / f"{hashlib.sha256(key).hexdigest()[:24]}.npz"
+    name = table_name(segment, theta_max, n_theta, n_psi)
+    path = _cache_dir() / name
     theta = np.linspace(0.0, theta_max, n_theta)
     psi = np.linspace(-0.5 * math.pi, 0.5 * math.pi, n_psi)
-    try:
-        with np.load(path) as stored:
-            table = stored["table"]
-        if table.shape == (n_psi, n_theta, 2):
-            return theta, psi, table
-    except (OSError, KeyError, ValueError):
-        pass
+    for stored_path in (SHIPPED / name, path):
+        try:
+            with np.load(stored_path) as stored:
+                table = stored["table"]
+            if table.shape == (n_psi, n_theta, 2):
+                return theta, psi, table
+        except (OSError, KeyError, ValueError):
+            pass
     table = np.stack([segment.leaf_curve(theta, p) for p in psi])
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
