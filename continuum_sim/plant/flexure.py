@@ -20,8 +20,8 @@ carries the same moment, so its torque is scale·M(c·q).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numba import njit
@@ -132,7 +132,10 @@ def flexure_forces(qpos: np.ndarray, qfrc: np.ndarray, qadr: np.ndarray, dofadr:
 
 @dataclass
 class FlexureEffect:
-    """The remainder torques of every flexure hinge pair of a compiled model (both arms)."""
+    """The remainder torques of every flexure hinge pair of a compiled model (both arms).
+
+    A passive hook (``install``): ``apply`` runs inside every step's passive stage.
+    """
 
     qadr: np.ndarray
     dofadr: np.ndarray
@@ -144,10 +147,26 @@ class FlexureEffect:
     dtheta: float
     dphi: float
 
+    error: BaseException | None = None
+    _model_ref: Any = field(default=None, repr=False)
+    _data_ref: Any = field(default=None, repr=False)
+    table_kind = "flexure"
+
     def apply(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:  # noqa: ARG002 - the effect hook's signature
         """Add the torques to ``data.qfrc_passive`` (call inside the passive stage)."""
         flexure_forces(data.qpos, data.qfrc_passive, self.qadr, self.dofadr, self.axes, self.factor, self.scale,
                        self.curve, self.tables, self.dtheta, self.dphi)
+
+    def install(self, model: mujoco.MjModel, data: mujoco.MjData) -> FlexureEffect:
+        """Run in the passive stage of every step of ``data`` (after the hooks already there)."""
+        import weakref
+
+        from ..model.friction import register_passive
+
+        self._model_ref = weakref.ref(model)
+        self._data_ref = weakref.ref(data)
+        register_passive(data, self)
+        return self
 
 
 def flexure_effect(model: mujoco.MjModel, arms: tuple[str, ...], geometry: ArmGeometry, model_geometry: ArmGeometry,

@@ -240,9 +240,9 @@ class RodProblem:
             dx = -np.linalg.solve(chol.T, np.linalg.solve(chol, g))
             e0, t = self.energy(q), 1.0
             while t > 1e-6:
-                trial = q.copy().ravel()
-                trial[free] += t * dx
-                trial = trial.reshape(q.shape)
+                flat = q.copy().ravel()
+                flat[free] += t * dx
+                trial = flat.reshape(q.shape)
                 if self.energy(trial) <= e0 + 1e-4 * t * float(g @ dx) + 1e-18:
                     break
                 t *= 0.5

@@ -194,6 +194,10 @@ def make_simulation(config: ScenarioConfig, plan: TaskPlan, model: mujoco.MjMode
     from ..plant.drive import MotorDrive  # (here: numba loads only once a run is built)
 
     sim.actuate = MotorDrive(model, handles, geometry, config.model, config.scene.tools)
+    if config.model.flexure_model == "nonlinear":  # the segments' nonlinear moment-rotation (docs/model.md)
+        from ..plant.flexure import flexure_effect
+
+        flexure_effect(model, tuple(handles.arms), config.arm, geometry, config.model.stiffness_scale).install(model, data)
     if config.simulation.tcp_noise_m > 0.0:
         sim.measure = NoisyMeasurement(config.simulation.tcp_noise_m, config.simulation.seed)
     return sim
