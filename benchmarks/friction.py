@@ -35,9 +35,10 @@ import mujoco
 import numpy as np
 
 from continuum_sim import cable_lengths
-from continuum_sim.model import friction as fr
+from continuum_sim.model.friction_options import DEFAULT_MU, DEFAULT_PRESLIDING, CableFrictionConfig
 from continuum_sim.model.options import model_geometry
 from continuum_sim.model.state import set_arm_configuration
+from continuum_sim.plant import friction as fr
 from continuum_sim.scenario.config import ScenarioConfig
 from continuum_sim.validation.capstan import anchor_tension as _anchor_tension
 from continuum_sim.validation.capstan import hold as _hold
@@ -76,7 +77,7 @@ def step_cost(steps: int, repeats: int) -> dict:
     rough = mujoco.MjData(model)
     for d in (plain, rough):
         mujoco.mj_copyData(d, model, base)
-    handle = fr.install_cable_friction(model, rough, fr.CableFrictionConfig())
+    handle = fr.install_cable_friction(model, rough, CableFrictionConfig())
     times: dict[str, list[float]] = {"without": [], "with": []}
     for _ in range(repeats):
         for key, d in (("without", plain), ("with", rough)):
@@ -88,15 +89,15 @@ def step_cost(steps: int, repeats: int) -> dict:
     # the callback's own work, timed directly (same state)
     t0 = time.process_time()
     for _ in range(steps):
-        handle.apply(model, rough)
+        handle.runtime.run(model, rough)
     callback = (time.process_time() - t0) / steps
     without, with_ = min(times["without"]), min(times["with"])
     return {
         "scene": "scenario dual-arm scene, arms bent and held",
         "joint": config.model.joint,
         "timestep_s": model.opt.timestep,
-        "cables": len(handle.kernel.routing.cable_start),
-        "pieces": handle.kernel.routing.n_pieces,
+        "cables": len(handle.routing.cable_start),
+        "pieces": handle.routing.n_pieces,
         "us_per_step_without": round(without * 1e6, 1),
         "us_per_step_with": round(with_ * 1e6, 1),
         "overhead_percent": round(100 * (with_ - without) / without, 1),
@@ -108,15 +109,13 @@ def step_cost(steps: int, repeats: int) -> dict:
 def compile_cost() -> dict:
     code = (
         "import time;t=time.process_time();"
-        "from continuum_sim.model import friction as fr;import numpy as np;"
-        "k=fr.kernels();f=k['cable_pieces'];"
-        "import continuum_sim.model.friction as m;"
-        "fr.CableKernel.__init__;"
+        "from continuum_sim.plant import friction as fr;import numpy as np;"
+        "from continuum_sim.model.friction_options import CableFrictionConfig;"
         "from continuum_sim.model.arm import build_single_arm_model;from continuum_sim.geometry import ArmGeometry;"
         "from continuum_sim.model.options import ModelOptions;import mujoco;"
         "r=build_single_arm_model(ArmGeometry.default(),ModelOptions(joint='hinge_pair'));"
         "mm=mujoco.MjModel.from_xml_string(r.to_xml_string(),r.get_assets());dd=mujoco.MjData(mm);"
-        "t=time.process_time();h=fr.install_cable_friction(mm,dd,fr.CableFrictionConfig());mujoco.mj_forward(mm,dd);h.check();"
+        "t=time.process_time();h=fr.install_cable_friction(mm,dd,CableFrictionConfig());mujoco.mj_forward(mm,dd);h.check();"
         "print(time.process_time()-t)"
     )
     out = {}
@@ -143,7 +142,7 @@ def _bend(model, data, ten: int) -> float:
 def _fresh(model, mu: float):
     data = mujoco.MjData(model)
     data.ctrl[:] = model.actuator_ctrlrange[:, 1]
-    return data, fr.install_cable_friction(model, data, fr.CableFrictionConfig(mu=mu))
+    return data, fr.install_cable_friction(model, data, CableFrictionConfig(mu=mu))
 
 
 
@@ -225,9 +224,11 @@ def scenario_runs(repeats: int) -> list[dict]:
     from continuum_sim.scenario.runner import run_scenario
 
     rows = []
-    mus = (0.0, fr.DEFAULT_MU)
+    mus = (0.0, DEFAULT_MU)
     plan = [("closed", mu) for _ in range(repeats) for mu in mus] + [("closed", 0.2)] + [("open", mu) for mu in mus]
-    fr.kernels()["friction_forces"]  # noqa: B018 - compile/load before timing
+    from continuum_sim.plant import passive
+
+    passive.compile_callback()  # compile/load before timing
     for mode, mu in plan:
         config = merged(ScenarioConfig.default(), {"model": {"cable_friction": {"mu": mu}}, "control": {"mode": mode}})
         t0 = time.process_time()
@@ -261,7 +262,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--skip", nargs="*", default=[], choices=["step", "compile", "capstan", "hysteresis", "scenario"])
     parser.add_argument("--scenario-repeats", type=int, default=2, help="closed-loop whole-task runs per μ (CPU time)")
     args = parser.parse_args(argv)
-    out: dict = {"default_mu": fr.DEFAULT_MU, "presliding_m": fr.DEFAULT_PRESLIDING, "load_average": os.getloadavg()}
+    out: dict = {"default_mu": DEFAULT_MU, "presliding_m": DEFAULT_PRESLIDING, "load_average": os.getloadavg()}
     if "compile" not in args.skip:
         out["compile"] = compile_cost()
     if "step" not in args.skip:

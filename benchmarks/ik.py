@@ -4,7 +4,7 @@ The targets are tool-centre poses (grinder) along a smooth random path in config
 space (FK of configurations within the bending bounds, ~5 mm apart), so every target is
 reachable and consecutive targets are close, as on a toolpath. Both solvers get the same
 targets, the same warm starts (the previous point's solution) and the same cold start
-rules, and evaluate the same forward kinematics (``ArmKernel``), so the ratio measures the
+rules, and evaluate the same forward kinematics (``kinematics_kernels.ArmPose``), so the ratio measures the
 algorithm, not the FK code. The baseline is SLSQP with numerical (2-point) gradients on
 the squared objective k1²‖ΔP‖² + k2²‖log(R_tipᵀR*)‖² with θ ∈ [0, θmax] (the nearest
 thing to the paper's MATLAB fmincon), asked for the same accuracy (ftol = (k1·1e-9 m)²);
@@ -35,6 +35,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 from continuum_sim import ArmGeometry  # noqa: E402
 from continuum_sim import kinematics as kin  # noqa: E402
 from continuum_sim.ik import IKOptions, get_solver, solve_ik, solve_path  # noqa: E402
+from continuum_sim.kinematics_kernels import ArmPose  # noqa: E402
 
 
 def targets_along_path(geometry: ArmGeometry, n: int, seed: int, tool_length: float) -> tuple[np.ndarray, np.ndarray]:
@@ -52,7 +53,7 @@ class SLSQPBaseline:
     """scipy SLSQP, numerical gradients, on (θ, φ) with θ ∈ [0, θmax]."""
 
     def __init__(self, geometry: ArmGeometry, tool_length: float, orientation: str, options: IKOptions):
-        self.kernel = kin.ArmKernel(geometry, tool_length)
+        self.kernel = ArmPose(geometry, tool_length)
         self.k1, self.k2 = options.position_weight, options.orientation_weight
         self.orientation = orientation
         self.bounds = [(0.0, b) if i % 2 == 0 else (None, None) for i, b in enumerate(geometry.max_bend.repeat(2))]

@@ -19,11 +19,14 @@ printed with the result.
   so the metrics agree to ~1e-10 relative, not bit for bit).
 * ``bare_mj_step``: plain ``mj_step`` of the same scene for the same simulated time (both paths).
 * ``video`` (``--frames N``, 0 skips it): the run's ``VideoRecorder`` (parallel render
-  workers) against a bare in-process ``mujoco.Renderer`` rendering the same cameras at the
-  same size and tessellation, wall time (the recorder spreads over processes).
+  workers, drawing a mid-cut kerf's voxels and the overlay as a run's video does; and
+  without them, ``recorder_plain``) against a bare in-process ``mujoco.Renderer`` rendering
+  the same cameras at the same size and tessellation, wall time (the recorder spreads over
+  processes); the kerf's and the overlay's CPU time per frame.
 
     python benchmarks/scenario.py [--repeat 3] [--stages initial,clamping] [--frames 60]
         [--config stiff=model.stiffness_scale=2] [--out benchmarks/scenario.json]
+    python benchmarks/scenario.py --video-only --frames 300 --out benchmarks/video.json
 """
 
 from __future__ import annotations
@@ -44,7 +47,7 @@ choose_gl_backend()
 import mujoco  # noqa: E402
 
 from continuum_sim.configio import replace_path  # noqa: E402
-from continuum_sim.model.cable_path import make_data  # noqa: E402
+from continuum_sim.plant.cable_path import make_data  # noqa: E402
 from continuum_sim.scenario.config import ScenarioConfig  # noqa: E402
 from continuum_sim.scenario.metrics import WALL_CLOCK_METRICS  # noqa: E402
 from continuum_sim.scenario.runner import build_run_model, build_scene_model, run_scenario  # noqa: E402
@@ -119,21 +122,57 @@ def run_once(config: ScenarioConfig, stages: tuple[str, ...] | None) -> dict[str
     return {"cpu_s": time.process_time() - cpu0, "wall_s": time.perf_counter() - wall0, "metrics": metrics}
 
 
+def _half_cut_grid(config: ScenarioConfig, model: Any, data: Any) -> Any:
+    """The cutter's voxel grid of the scene with the first half of the kerf cleared (what a
+    mid-cut frame draws: the most boxes, the uncut band being two)."""
+    import numpy as np
+
+    from continuum_sim.plant.cutter import foam_cutter
+
+    grid = foam_cutter(model, data, config.layout, config.scene).grid
+    plate = config.layout.plate
+    line, w = plate.kerf_polyline(), plate.kerf_width / 2
+    gx, gy = np.meshgrid(grid.centres[0], grid.centres[1], indexing="ij")
+    grid.material[(np.abs(gx - line[0, 0]) <= w) & (gy <= line[1, 1])] = False  # the first leg
+    grid.material[(np.abs(gy - line[1, 1]) <= w) & (gx <= (line[1, 0] + line[2, 0]) / 2), 4:] = False  # half the second, top
+    return grid
+
+
+def _record(model: Any, config: ScenarioConfig, data: Any, frames: int, grid: Any, text: tuple[str, ...]) -> tuple[float, int]:
+    sim = config.simulation
+    with tempfile.TemporaryDirectory() as tmp:
+        start = time.perf_counter()
+        with VideoRecorder(model, Path(tmp) / "v.mp4", sim.cameras, sim.video_width, sim.video_height, sim.video_fps,
+                           sim.video_shadows, grid=grid) as video:
+            for _ in range(frames):
+                video.next_time = data.time
+                video.maybe_capture(data, text)
+        return time.perf_counter() - start, video.workers  # includes worker start-up and the final join
+
+
 def video_comparison(config: ScenarioConfig, frames: int) -> dict[str, Any]:
-    """Wall time of the recorder (workers) and of a bare in-process renderer on the same frames."""
+    """Wall time of the recorder (workers) and of a bare in-process renderer on the same frames.
+
+    The recorder draws what a run's video draws mid-cut (the kerf's voxels, the overlay text);
+    ``recorder_plain`` is the recorder without them (the video before issue 25). The CPU cost
+    of the kerf boxes and the overlay per frame is timed in-process (``time.process_time``)."""
+    import numpy as np
+
+    from continuum_sim.video_foam import KerfVoxels
+    from continuum_sim.video_overlay import draw_overlay
+
     sim = config.simulation
     _, model = build_scene_model(config)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    with tempfile.TemporaryDirectory() as tmp:
-        start = time.perf_counter()
-        with VideoRecorder(model, Path(tmp) / "v.mp4", sim.cameras, sim.video_width, sim.video_height, sim.video_fps, sim.video_shadows) as video:
-            for _ in range(frames):
-                video.next_time = data.time
-                video.maybe_capture(data)
-        recorder_wall = time.perf_counter() - start  # includes worker start-up and the final join
-        workers = video.workers
+    grid = _half_cut_grid(config, model, data)
+    text = ("t  24.0 s   milling", "cut  50 %   sample held by the plate", "spindle   9549 rpm   force 0.044 N")
+    recorder_wall, workers = _record(model, config, data, frames, grid, text)
+    plain_wall, _ = _record(model, config, data, frames, None, ())
     prepare_video_model(model, sim.video_width, sim.video_height, sim.video_shadows, "fast")  # as the recorder's workers do
+    kerf = KerfVoxels.from_model(model, grid)
+    assert kerf is not None
+    packed = kerf.snapshot(grid.material)
     with mujoco.Renderer(model, sim.video_height, sim.video_width) as renderer:
         start = time.perf_counter()
         for _ in range(frames):
@@ -141,14 +180,31 @@ def video_comparison(config: ScenarioConfig, frames: int) -> dict[str, Any]:
                 renderer.update_scene(data, camera=name)
                 renderer.render()
         bare_wall = time.perf_counter() - start
+        cpu0 = time.process_time()
+        for _ in range(frames):
+            boxes = kerf.boxes(packed)
+            for name in sim.cameras:
+                renderer.update_scene(data, camera=name)
+                kerf.add_to_scene(renderer.scene, boxes)
+        kerf_cpu = time.process_time() - cpu0
+        cpu0 = time.process_time()
+        frame = np.zeros((sim.video_height, sim.video_width * len(sim.cameras), 3), np.uint8)
+        for _ in range(frames):
+            draw_overlay(frame, text, sim.video_height)
+        overlay_cpu = time.process_time() - cpu0
     return {
         "cameras": list(sim.cameras),
         "size": [sim.video_width, sim.video_height],
         "frames": frames,
         "workers": workers,
+        "kerf_boxes_mid_cut": len(kerf.boxes(packed)),
         "recorder_fps_wall": round(frames / recorder_wall, 2),
+        "recorder_plain_fps_wall": round(frames / plain_wall, 2),
         "bare_renderer_fps_wall": round(frames / bare_wall, 2),
         "ratio": round(bare_wall / recorder_wall, 3),
+        "ratio_plain": round(bare_wall / plain_wall, 3),
+        "kerf_ms_cpu_per_frame": round(1000 * kerf_cpu / frames, 3),
+        "overlay_ms_cpu_per_frame": round(1000 * overlay_cpu / frames, 3),
         "goal_ratio": 0.8,
     }
 
@@ -160,7 +216,19 @@ def main() -> None:
     parser.add_argument("--config", action="append", default=[], help="NAME=PATH=VALUE[,PATH=VALUE]: a configuration to compare")
     parser.add_argument("--frames", type=int, default=60, help="video frames to time (0: skip)")
     parser.add_argument("--out", type=Path, help="also write the JSON here")
+    parser.add_argument("--video-only", action="store_true", help="only the video comparison (--frames)")
     args = parser.parse_args()
+    if args.video_only:
+        load = os.getloadavg()
+        video = video_comparison(ScenarioConfig.default(), args.frames)
+        text = json.dumps({"measured": time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime()),
+                           "machine": {"cpus": os.cpu_count(), "load_avg_1_5_15_before": [round(x, 2) for x in load],
+                                       "load_avg_1_5_15_after": [round(x, 2) for x in os.getloadavg()]},
+                           "video": video}, indent=2)
+        print(text)
+        if args.out is not None:
+            args.out.write_text(text + "\n")
+        return
     stages = tuple(s for s in args.stages.split(",") if s) or None
     # The plain MuJoCo path (spatial tendons) is always measured beside the default (native) one.
     plain = _config_variant(f"{PLAIN}=model.cable_path=spatial")

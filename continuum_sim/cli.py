@@ -93,6 +93,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         config = merged(config, {"control": {"mode": args.controller, "controller": ""}})
     elif args.controller is not None:
         config = merged(config, {"control": {"controller": args.controller}})
+    if args.no_overlay:
+        config = merged(config, {"simulation": {"video_overlay": False}})
     # Everything that can be refused is refused before the folder is touched.
     from .controllers import controller_spec, load_controller
 
@@ -110,6 +112,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         metrics = run_scenario(config, out, video=args.video, progress=not args.quiet, controller=controller)
     except SimulationDiverged as exc:
         finish(out, "diverged", str(exc))
+        _write_run_report(out)
+        print("outcome: task FAILED: diverged (metrics.json: status_reason)")
         print(f"continuum-sim run: error: {exc}", file=sys.stderr)
         return EXIT_DIVERGED
     except BaseException as exc:  # Ctrl-C, SIGTERM, disk full, a refused plan, a bug: the folder says so
@@ -120,21 +124,41 @@ def _cmd_run(args: argparse.Namespace) -> int:
                _clip(f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__, 200))
         raise
     finish(out, "complete")
+    rounded = _rounded
     summary = {
         "task_completed": metrics["task"]["completed"],
         "task_failure": metrics["task"]["failure"],
         "sample_detached": metrics["sample_detached"],
         "sample_held_at_end": metrics["sample_held_at_end"],
         "detached_before_cut_complete": metrics["detached_before_cut_complete"],
-        "cutting_tip_error_mm_mean": round(metrics["cutting_tip_error_mm"]["mean"], 4),
-        "spindle_axis_error_deg_max": round(metrics["spindle_axis_error_deg"]["max"], 4),
+        "cutting_tip_error_mm_mean": rounded(metrics["cutting_tip_error_mm"]["mean"], 4),
+        "spindle_axis_error_deg_max": rounded(metrics["spindle_axis_error_deg"]["max"], 4),
         "min_arm_distance_mm": round(1000 * metrics["min_arm_distance_m"], 2),
         "control": metrics["control"],
-        "real_time_factor": round(metrics["real_time_factor"], 2),
+        "cpu_real_time_factor": rounded(metrics["cpu_real_time_factor"], 2),
+        "wall_real_time_factor": rounded(metrics["wall_real_time_factor"], 2),
     }
     print(json.dumps(summary, indent=2))
-    print(f"run folder: {out}/ (metrics.json, trajectory.npz, plots/, model/{', video.mp4' if args.video else ''})")
+    _write_run_report(out)
+    print(f"run folder: {out}/ (report.html, metrics.json, trajectory.npz, plots/, model/{', video.mp4' if args.video else ''})")
+    completed, failure = metrics["task"]["completed"], metrics["task"]["failure"]
+    print("outcome: task completed" if completed else f"outcome: task FAILED: {failure} (metrics.json: task.failure)")
+    if args.require_completed and not completed:
+        print(f"continuum-sim run: the task failed: {failure} (--require-completed)", file=sys.stderr)
+        return EXIT_NEGATIVE
     return 0
+
+
+def _rounded(value: float | None, digits: int) -> float | None:
+    """``round`` that keeps None (a figure the run has not got, e.g. no cutting in a partial run)."""
+    return None if value is None else round(value, digits)
+
+
+def _write_run_report(out) -> None:
+    """report.html of the run folder (continuum_sim.report: reads the folder's files, no GL)."""
+    from .report import write_report
+
+    write_report(out, "run")
 
 
 def _cmd_metrics(args: argparse.Namespace) -> int:
@@ -243,6 +267,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         return 130
     if not args.quiet:
         print(format_table(spec, result.records))
+    from .report import write_report
+
+    write_report(result.root, "sweep")  # report.html: the comparison table and the plots on one page
     print(
         f"sweep: {result.n_variants} variants ({result.n_skipped} already recorded, {result.n_run} run, "
         f"{result.n_failed} failed; mode {result.mode}) -> {result.root}/results.csv, {len(result.plots)} plots"
@@ -490,13 +517,17 @@ def build_parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="the main job: run the sample-removal scenario, write a run folder")
     run.add_argument("--config", help="scenario TOML file (overrides the shipped defaults)")
     run.add_argument("--out", default="runs/default", help="run folder (default: runs/default)")
-    run.add_argument("--video", action="store_true", help="render an MP4 off-screen (EGL)")
+    run.add_argument("--video", action="store_true", help="render an MP4 off-screen (EGL); see docs/video.md")
+    run.add_argument("--no-overlay", action="store_true",
+                     help="no text over the video's frames (sets simulation.video_overlay = false)")
     run.add_argument("--control", choices=["open", "closed"], help="open = the paper's method, closed = ours (default: config)")
     run.add_argument("--controller", metavar="MODULE:CLASS",
                      help="your own controller class (continuum_sim.controllers.Controller protocol; "
                           "sets control.controller), or open/closed")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.add_argument("--overwrite", action="store_true", help="replace the run already in --out (cleared first)")
+    run.add_argument("--require-completed", action="store_true",
+                     help="exit 1 (naming the failure) when the task fails; default: exit 0 whenever the run itself finished")
     run.set_defaults(func=_cmd_run)
 
     metrics = sub.add_parser("metrics", help="recompute a run folder's metrics.json from its trajectory.npz and config.toml")
@@ -520,7 +551,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     build.set_defaults(func=_cmd_build_model)
 
-    sweep = sub.add_parser("sweep", help="evaluate a grid of design variants; resumable (README: Parameter sweeps)")
+    sweep = sub.add_parser("sweep", help="evaluate a grid of design variants; resumable (docs/sweeps.md)")
     sweep.add_argument("spec", metavar="SPEC.toml", help="sweep spec: [grid], [evaluation], metrics")
     sweep.add_argument("--out", help="results folder (default: sweeps/<spec name>); rerun to resume")
     sweep.add_argument("--workers", type=int, help="parallel workers (default: all cores; Ray: cluster CPUs)")
@@ -539,6 +570,9 @@ def build_parser() -> argparse.ArgumentParser:
     from .sysid.cli import add_commands as add_sysid_commands  # replay, synthesize, identify (docs/sysid.md)
 
     add_sysid_commands(sub)
+    from .report.cli import add_commands as add_report_commands  # report, export (docs/report.md)
+
+    add_report_commands(sub)
     return parser
 
 

@@ -132,16 +132,11 @@ def plan_at(plan: TaskPlan, arm: str, t: float) -> tuple[Array, Array]:
     sample repeated every fifth one, which modulated the set-point rate at the 25 Hz beat
     and rang the cables (docs/plant.md, "Tension chatter").
     """
-    times = plan.t
-    q, tcp = plan.q(arm), plan.tcp(arm)
-    if times.dtype == q.dtype == tcp.dtype == np.float64 and len(times) > 1:  # one numba call, the same numbers
-        from .control_kernels import kernels
+    from .control.kernels import plan_sample  # numba: loaded with the controllers, not with the config
 
-        return kernels()["plan_at"](times, float(t), q, tcp)
-    x = min(max((t - float(times[0])) / float(times[1] - times[0]), 0.0), len(times) - 1.0)
-    i0 = min(int(x), len(times) - 2)
-    f = x - i0
-    return (1.0 - f) * q[i0] + f * q[i0 + 1], (1.0 - f) * tcp[i0] + f * tcp[i0 + 1]
+    as_samples = np.ascontiguousarray  # float64, C order: one compiled signature (no copy for the plan's own arrays)
+    return plan_sample(as_samples(plan.t, np.float64), float(t), as_samples(plan.q(arm), np.float64),
+                       as_samples(plan.tcp(arm), np.float64))
 
 
 class PlanTrackingController:
@@ -158,7 +153,7 @@ class PlanTrackingController:
         self._arms: dict[str, Any] = {}
 
     def reset(self, context: ControlContext) -> None:
-        from .control import ArmController
+        from .control.arm import ArmController
         from .model.cable_elasticity import cable_stiffness
 
         cfg = context.config

@@ -129,7 +129,7 @@ class SampleRemovalEnv(gym.Env[dict[str, Any], NDArray[np.float32]]):
         if seed is not None:  # the seed drives the (optional) sensor noise, as simulation.seed does for a run
             cfg = dataclasses.replace(cfg, simulation=dataclasses.replace(cfg.simulation, seed=int(seed)))
         if self.sim is not None:
-            from .model.cable_path import release_data
+            from .plant.cable_path import release_data
 
             self.loop.close()
             release_data(self.sim.data)
@@ -202,7 +202,7 @@ class SampleRemovalEnv(gym.Env[dict[str, Any], NDArray[np.float32]]):
 
     def close(self) -> None:
         if self.sim is not None:
-            from .model.cable_path import release_data
+            from .plant.cable_path import release_data
 
             self.loop.close()
             release_data(self.sim.data)

@@ -65,13 +65,8 @@ def cable_moment_arms(geometry: ArmGeometry, w: Array | None = None, h: float = 
     """(n_cables, 2·n_sections) A = −∂l/∂w at ``w`` (default straight), central differences of the PCC cable lengths."""
     n = 2 * geometry.n_sections
     w0 = np.zeros(n) if w is None else np.asarray(w, dtype=float)
-    kernel = kin.CableKernel(geometry)
-    A = np.empty((3 * geometry.n_sections, n))
-    for j in range(n):
-        d = np.zeros(n)
-        d[j] = h
-        A[:, j] = -(kernel.lengths((w0 + d).tolist()) - kernel.lengths((w0 - d).tolist())) / (2.0 * h)
-    return A
+    d = h * np.eye(n)
+    return np.asarray(-(kin.cable_lengths_bending(geometry, w0 + d) - kin.cable_lengths_bending(geometry, w0 - d)).T / (2.0 * h))
 
 
 def stiffness_matrices(

@@ -8,7 +8,7 @@ coordinates ``w = θ(cos φ, sin φ)`` per section (smooth at the θ = 0 phase s
 with the disk bound ``|w_k| ≤ θmax_k``; in ``planar`` phase mode they are the signed
 bending angles ``s_k`` with every φ fixed to the plane (φ ∈ {ψ, ψ+π}).
 
-Solver: projected Levenberg-Marquardt with the analytic Jacobian (``ArmKernel``) and
+Solver: projected Levenberg-Marquardt with the analytic Jacobian (``kinematics_kernels.ArmPose``) and
 damping ``λ = μ‖r‖²``, which turns into plain Gauss-Newton near a zero-residual solution
 (quadratic convergence, hence errors ~1e-13 after a few steps). Cold starts try a fixed
 table of seed configurations ordered by how close their tool pose is to the target
@@ -264,7 +264,10 @@ class IKSolver:
         self.tool_length = float(tool_length)
         self.plane_angle = float(plane_angle)
         self.options = options or IKOptions()
-        self.kernel = kin.ArmKernel(geometry, tool_length)
+        from .kinematics_kernels import ArmPose, sinc  # numba: loaded when a solver is built, not with the config
+
+        self.kernel = ArmPose(geometry, tool_length)
+        self._sinc = sinc
         self.S = geometry.n_sections
         self.bounds = [float(b) for b in geometry.max_bend]
         self.n_vars = self.S if phase == "planar" else 2 * self.S
@@ -373,7 +376,7 @@ class IKSolver:
                 F = np.array(R).reshape(3, 3) @ np.array(Rt).reshape(3, 3).T
                 ex, ey, ez = (float(c) for c in kin.log_so3(F))
             else:
-                f = 0.5 / kin._sinc_scalar(angle)
+                f = 0.5 / self._sinc(angle)
                 ex, ey, ez = vx * f, vy * f, vz * f
             eo = angle
             r = [k1 * dx, k1 * dy, k1 * dz, k2 * ex, k2 * ey, k2 * ez]

@@ -17,7 +17,7 @@ from .configio import ConfigError
 
 MAX_STEPS_PER_TICK = 1_000  # MuJoCo steps per control tick (default: 2 at 4 ms and 125 Hz)
 MAX_SIM_STEPS = 20_000_000  # steps per run (default run: ~13,000); ~2 h at 300 µs/step
-MAX_PLAN_SAMPLES = 100_000  # timed plan samples (default: 5,134); ~4 kB each while planning
+# The plan's own limit (samples) is toolpath.MAX_PLAN_SAMPLES: the planner checks it while it lays out the moves.
 
 
 def steps_per_tick(config: Any) -> int:
@@ -76,14 +76,3 @@ def check_cameras(config: Any) -> None:
     for i, name in enumerate(config.simulation.cameras):
         if name not in known:
             raise ConfigError(f"simulation.cameras[{i}]", f"unknown camera {name[:40]!r}; the scene has {', '.join(known)}")
-
-
-def check_plan_samples(n_samples: int, duration_s: float, rate_hz: float, longest: str) -> None:
-    """The plan's sample count, known from its move durations before any array is allocated."""
-    if n_samples > MAX_PLAN_SAMPLES:
-        raise ConfigError(
-            "plan",
-            f"the plan would last {duration_s:.4g} s = {n_samples} samples at sample_rate_hz = {rate_hz:g}; at most "
-            f"{MAX_PLAN_SAMPLES} allowed (longest move: {longest}; raise plan.cut_speed / plan.fast_speed, shorten the "
-            "dwells or lower plan.sample_rate_hz)",
-        )

@@ -31,7 +31,7 @@ STATES = ("running", "complete", "interrupted", "diverged", "failed", "incomplet
 # What a run writes; a folder holding anything else is not cleared by --overwrite.
 RUN_FILES = {
     MARKER, "config.toml", "metrics.json", "trajectory.npz", "video.mp4", "video.interrupted.mp4", "video.diverged.mp4",
-    "video.failed.mp4", "plots", "model", "MUJOCO_LOG.TXT",
+    "video.failed.mp4", "plots", "model", "MUJOCO_LOG.TXT", "report.html", "replay.rrd",
 }
 
 

@@ -27,9 +27,10 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from . import kinematics as kin
-from .configio import ConfigError, require_positive, require_range
+from .configio import ConfigError, atomic_write_bytes, require_positive, require_range
+from .distances import polyline_distance
 from .geometry import ArmGeometry
-from .ik import IKOptions, StepLimits, interpolate_pose, interpolate_q, solve_path
+from .ik import IKOptions, StepLimits, _to_arm_frame, get_solver, interpolate_pose, interpolate_q, solve_ik, solve_path
 from .layout import TaskLayout
 from .workspace import UnreachableError, check_poses
 
@@ -342,8 +343,6 @@ def gripper_poses(layout: TaskLayout, cfg: PlanConfig) -> dict[str, Array]:
 
 def _nearest_solution(planner: _ArmPlanner, pose: Array, q_ref: Array, cfg: PlanConfig) -> Array:
     """IK of ``pose`` among the cold-start solutions, the one nearest ``q_ref`` in bending coordinates."""
-    from .ik import _to_arm_frame, get_solver
-
     solver = get_solver(planner.geometry, planner.orientation, planner.phase, planner.mount.tool, 0.0, cfg.ik)  # type: ignore[arg-type]
     target = _to_arm_frame(pose, planner.base)
     X = solver.seed_table()[0]
@@ -435,12 +434,24 @@ def plan_task(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig | None 
     return plan
 
 
+MAX_PLAN_SAMPLES = 100_000  # timed plan samples (default: 5,134); ~4 kB each while planning (docs/errors.md "Limits")
+
+
+def check_plan_samples(n_samples: int, duration_s: float, rate_hz: float, longest: str) -> None:
+    """The plan's sample count, known from its move durations before any array is allocated."""
+    if n_samples > MAX_PLAN_SAMPLES:
+        raise ConfigError(
+            "plan",
+            f"the plan would last {duration_s:.4g} s = {n_samples} samples at sample_rate_hz = {rate_hz:g}; at most "
+            f"{MAX_PLAN_SAMPLES} allowed (longest move: {longest}; raise plan.cut_speed / plan.fast_speed, shorten the "
+            "dwells or lower plan.sample_rate_hz)",
+        )
+
+
 def _sample(geometry, layout, cfg, timeline, qL0, qR0, waypoints) -> TaskPlan:
     """Lay the stages end to end and sample both arms at the plan rate."""
     dt = 1.0 / cfg.sample_rate_hz
     # Refuse an absurd plan (a 1e-7 m/s cut: 10^8 samples, gigabytes) before allocating it.
-    from .limits import check_plan_samples
-
     moves = [mv for _, stage_moves in timeline for mv in stage_moves]
     n_total = 1 + sum(max(1, round(mv.duration / dt)) if mv.duration > 0 else 0 for mv in moves)
     longest = max(moves, key=lambda mv: mv.duration)
@@ -616,8 +627,6 @@ def _metrics(geometry, layout, cfg, cat, q_left, q_right, tcp_left, tcp_right, w
     # Deviation of the planned TCP (eq. 12 interpolation between solved points) from the ideal kerf line.
     gp = grinder_poses(layout, cfg)
     line = np.array([gp[k][:3, 3] for k in ("cut_start", "front_edge", "inner_corner", "side_edge")])
-    from .scenario.metrics import polyline_distance
-
     dev = polyline_distance(tcp_left[cutting, :3, 3], line) if cutting.any() else np.zeros(0)
     axis_err = np.degrees(np.arccos(np.clip(tcp_left[cutting, 2, 2], -1.0, 1.0))) if cutting.any() else np.zeros(0)
     steps = {}
@@ -658,8 +667,6 @@ def save_plan(plan: TaskPlan, path) -> None:
     import io
     import json
 
-    from .configio import atomic_write_bytes
-
     buf = io.BytesIO()
     np.savez_compressed(
         buf, t=plan.t, stage=plan.stage, segment=plan.segment, q_left=plan.q_left, q_right=plan.q_right,
@@ -690,8 +697,6 @@ def planar_demo_path(layout: TaskLayout, cfg: PlanConfig, n_points: int = 25) ->
 
 def solve_planar_demo(geometry: ArmGeometry, layout: TaskLayout, cfg: PlanConfig) -> dict:
     """The planar demo path solved in both phase modes from the same cold-started first point."""
-    from .ik import solve_ik
-
     poses = planar_demo_path(layout, cfg)
     base = layout.left.base_transform()
     out = {}

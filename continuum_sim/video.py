@@ -8,6 +8,11 @@ time. Chunks of snapshots go to render worker processes, each of which owns its 
 result to its final name atomically. Rendering therefore runs beside the physics instead
 of inside the tick loop, and on several cores.
 
+With the cutter's voxel grid (``grid``) each snapshot also carries the kerf band's voxels
+(packed bits, only when they changed) and the workers draw what is left of the band instead
+of its static geoms (``video_foam``), so the cut shows as it is made; overlay lines sent with
+a frame are drawn over it (``video_overlay``). What the video shows: docs/video.md.
+
 Why: software EGL (Mesa llvmpipe on CPU-only machines) spends ~0.1 s per two-camera frame,
 most of it tessellating the 18 cable tendons (measured: 0.088 s vs 0.037 s per view with
 tendons hidden); the default run has ~1,000 frames. ``quality`` lowers MuJoCo's
@@ -25,14 +30,17 @@ import subprocess
 import sys
 import tempfile
 import threading
-from collections.abc import Sequence
-from concurrent.futures import Future, ProcessPoolExecutor
+from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from .video_foam import KerfVoxels
+from .video_overlay import draw_overlay
 
 # Tessellation used for the video: MuJoCo's defaults are (28, 16); thin cables and 40 mm
 # disks look the same at 640×480 with (14, 6), and software GL renders ~2× faster.
@@ -48,6 +56,8 @@ class FrameState:
     mocap_pos: np.ndarray
     mocap_quat: np.ndarray
     geom_rgba: np.ndarray | None  # None: unchanged since the previous snapshot
+    foam: np.ndarray | None = None  # the kerf band's voxels (KerfVoxels.snapshot); None: unchanged
+    text: tuple[str, ...] = ()  # overlay lines (video_overlay.overlay_lines)
 
 
 def _prepare_model(model: Any, width: int, height: int, shadows: bool, quality: str) -> None:
@@ -85,28 +95,44 @@ def pose_for_drawing(model: Any, data: Any, time: float, qpos: np.ndarray, mocap
 
 
 class _FrameRenderer:
-    """One renderer that draws every camera of a frame side by side."""
+    """One renderer that draws every camera of a frame side by side, the cut foam
+    (``kerf``: the band's voxels instead of its static geoms) and the overlay text."""
 
-    def __init__(self, model: Any, cameras: Sequence[str], width: int, height: int) -> None:
+    def __init__(self, model: Any, cameras: Sequence[str], width: int, height: int,
+                 kerf: KerfVoxels | None = None) -> None:
         import mujoco
 
         self._mujoco = mujoco
         self.model = model
         self.data = mujoco.MjData(model)
         self.cameras = list(cameras)
-        self.renderer = mujoco.Renderer(model, height, width)
+        self.height = height
+        self.kerf = kerf
+        self._boxes = np.zeros((0, 6))
+        self._band = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) for n in kerf.band_geoms], int) \
+            if kerf is not None else np.zeros(0, int)
+        self._band = self._band[self._band >= 0]
+        # Room for the scene's own geoms and the foam's boxes (at most 9 in the default run).
+        self.renderer = mujoco.Renderer(model, height, width, max_geom=10000 + 2000 * (kerf is not None))
 
     def render_state(self, state: FrameState) -> np.ndarray:
         pose_for_drawing(self.model, self.data, state.time, state.qpos, state.mocap_pos, state.mocap_quat,
                          state.geom_rgba)
-        return self.render_data(self.data)
+        if self.kerf is not None:
+            self.model.geom_rgba[self._band, 3] = 0.0  # drawn from the voxels instead
+            if state.foam is not None:
+                self._boxes = self.kerf.boxes(state.foam)
+        return self.render_data(self.data, state.text)
 
-    def render_data(self, data: Any) -> np.ndarray:
+    def render_data(self, data: Any, text: tuple[str, ...] = ()) -> np.ndarray:
         tiles = []
         for name in self.cameras:
             self.renderer.update_scene(data, camera=name)
+            if self.kerf is not None:
+                self.kerf.add_to_scene(self.renderer.scene, self._boxes)
             tiles.append(self.renderer.render())
-        return np.concatenate(tiles, axis=1)
+        frame = np.concatenate(tiles, axis=1)
+        return draw_overlay(frame, text, self.height) if text else frame
 
     def close(self) -> None:
         self.renderer.close()
@@ -150,12 +176,13 @@ def _spawn_ignoring_sigint(pool: ProcessPoolExecutor, workers: int) -> None:
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
-def _worker_init(model_bytes: bytes, cameras: list[str], width: int, height: int, fps: float) -> None:
+def _worker_init(model_bytes: bytes, cameras: list[str], width: int, height: int, fps: float,
+                 kerf: KerfVoxels | None = None) -> None:
     from .lifetime import die_with
 
     die_with()  # a SIGKILLed (or interrupted mid-start) run leaves no render worker behind
     model = pickle.loads(model_bytes)
-    _WORKER["renderer"] = _FrameRenderer(model, cameras, width, height)
+    _WORKER["renderer"] = _FrameRenderer(model, cameras, width, height, kerf)
     _WORKER["fps"] = fps
 
 
@@ -212,7 +239,10 @@ class VideoRecorder:
         workers: int | None = None,
         quality: str = "fast",
         chunk_frames: int = 60,
+        grid: Any = None,
     ) -> None:
+        """``grid``: the cutter's ``FoamGrid``, whose kerf-band voxels are drawn in each frame
+        instead of the band's static geoms (``video_foam``); None draws the model as it is."""
         import mujoco
 
         if quality not in VIDEO_SLICES:
@@ -235,13 +265,16 @@ class VideoRecorder:
         self._pending: list[FrameState] = []
         self._segments: list[tuple[Path, Future[int]]] = []
         self._last_rgba: np.ndarray | None = None
+        self.grid = grid
+        self.kerf = None if grid is None else KerfVoxels.from_model(model, grid)
+        self._last_foam: np.ndarray | None = None
         self._segment_dir: Path | None = None
         self._pool: ProcessPoolExecutor | None = None
         self._renderer: _FrameRenderer | None = None
         self._writer: Any = None
         if self.workers <= 0:
             _prepare_model(model, width, height, shadows, quality)
-            self._renderer = _FrameRenderer(model, self.cameras, width, height)
+            self._renderer = _FrameRenderer(model, self.cameras, width, height, self.kerf)
             self._writer = _open_writer(self._tmp, fps)
         else:
             render_model = pickle.loads(pickle.dumps(model))  # the run's model stays untouched
@@ -251,7 +284,7 @@ class VideoRecorder:
                 max_workers=self.workers,
                 mp_context=get_context("spawn"),  # a fresh process per worker: no inherited GL state
                 initializer=_worker_init,
-                initargs=(pickle.dumps(render_model), self.cameras, width, height, fps),
+                initargs=(pickle.dumps(render_model), self.cameras, width, height, fps, self.kerf),
             )
             try:
                 _spawn_ignoring_sigint(self._pool, self.workers)
@@ -261,22 +294,29 @@ class VideoRecorder:
                 self._pool.shutdown(wait=False, cancel_futures=True)
                 raise
 
-    def _snapshot(self, data: Any) -> FrameState:
-        """The frame's state; the colour table only when it changed or a new chunk starts
-        (a worker may not have seen the previous chunk)."""
+    def _snapshot(self, data: Any, text: tuple[str, ...] = ()) -> FrameState:
+        """The frame's state; the colour table and the kerf's voxels only when they changed or
+        a new chunk starts (a worker may not have seen the previous chunk)."""
         rgba = self.model.geom_rgba
         changed = not self._pending or self._last_rgba is None or not np.array_equal(rgba, self._last_rgba)
         if changed:
             self._last_rgba = rgba.copy()
+        foam = None
+        if self.kerf is not None:
+            packed = self.kerf.snapshot(self.grid.material)
+            if not self._pending or self._last_foam is None or not np.array_equal(packed, self._last_foam):
+                self._last_foam = foam = packed
         return FrameState(
             time=float(data.time),
             qpos=data.qpos.copy(),
             mocap_pos=data.mocap_pos.copy(),
             mocap_quat=data.mocap_quat.copy(),
             geom_rgba=self._last_rgba if changed else None,
+            foam=foam,
+            text=tuple(text),
         )
 
-    def render_frame(self, data: Any) -> np.ndarray:
+    def render_frame(self, data: Any, text: tuple[str, ...] = ()) -> np.ndarray:
         """The tiled RGB frame of the current state (in-process renderer).
 
         Drawn from the state copied into the renderer's own data, as the workers do: ``data``
@@ -284,17 +324,21 @@ class VideoRecorder:
         """
         if self._renderer is None:
             raise RuntimeError("render_frame needs the in-process renderer (workers=0)")
-        self._last_rgba = None
-        return self._renderer.render_state(self._snapshot(data))
+        self._last_rgba = self._last_foam = None
+        return self._renderer.render_state(self._snapshot(data, text))
 
-    def maybe_capture(self, data: Any) -> bool:
-        """Take a frame if simulated time has reached the next frame time."""
-        if self._closed or data.time + 1e-12 < self.next_time:
+    def due(self, data: Any) -> bool:
+        """Whether simulated time has reached the next frame time."""
+        return not self._closed and data.time + 1e-12 >= self.next_time
+
+    def maybe_capture(self, data: Any, text: tuple[str, ...] = ()) -> bool:
+        """Take a frame if simulated time has reached the next frame time; ``text``: overlay lines."""
+        if not self.due(data):
             return False
         if self._writer is not None:
-            self._writer.append_data(self.render_frame(data))
+            self._writer.append_data(self.render_frame(data, text))
         else:
-            self._pending.append(self._snapshot(data))
+            self._pending.append(self._snapshot(data, text))
             if len(self._pending) >= self._chunk_frames:
                 self._submit()
         self.frames += 1
@@ -308,6 +352,13 @@ class VideoRecorder:
         path = self._segment_dir / f"segment_{len(self._segments):05d}.mp4"
         self._segments.append((path, self._pool.submit(_worker_render, states, str(path))))
         self._pending = []
+
+    def wait_for_workers(self, report: Callable[[int], None]) -> None:
+        """Block until every frame captured so far is encoded, calling ``report(frames)`` as each chunk
+        finishes (a progress bar; ``close`` then only joins the segments). Nothing to wait for in-process."""
+        self._submit()
+        for future in as_completed([future for _, future in self._segments]):
+            report(future.result())
 
     def close(self, keep: bool = True) -> None:
         """Finish the file; with ``keep`` it is moved to its final name, else discarded.

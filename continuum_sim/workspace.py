@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 from . import kinematics as kin
 from .configio import ConfigError, atomic_write_figure, require_int, require_range
 from .geometry import ArmGeometry
+from .ik import solve_ik
 from .layout import TaskLayout
 
 Array = NDArray[np.float64]
@@ -220,8 +221,6 @@ def check_poses(geometry: ArmGeometry, layout: TaskLayout, arm: str, poses: list
     Returns the IK results in order. With a sampled ``workspace`` the message also says
     whether the position alone is outside the sampled tool-point cloud.
     """
-    from .ik import solve_ik
-
     mount = layout.mount(arm)
     results = []
     for name, pose in poses:

@@ -1,6 +1,6 @@
 """Drive the Gymnasium environment: the built-in closed loop (zero action) and a random policy.
 
-    python examples/gym_env.py            # both policies, the whole task (~1-2 min CPU)
+    python examples/gym_env.py            # both policies, the whole task (~10 s CPU: `time python examples/gym_env.py`)
     python examples/gym_env.py --stages initial clamping   # a short check
 
 A zero action leaves the built-in closed-loop controller in charge, so its cutting error

@@ -1,10 +1,11 @@
 """The README's results table and picture: the default task closed vs open loop, CPU time, one frame.
 
-    python scripts/readme_results.py [--out runs/readme] [--frame docs/run_frame.png]
+    python scripts/readme_results.py [--out runs/readme] [--frame docs/run_frame.png] [--frame-only]
 
 Runs the shipped default scenario twice (control.mode closed, then open), prints a Markdown
 table of the task metrics and the CPU time (time.process_time) per simulated second, and
-renders one frame of the closed-loop run mid-cut (an observer grabs it: no video needed).
+renders one frame of the closed-loop run mid-cut as the video draws it (an observer grabs it:
+no video needed; ``--frame-only`` renders just the frame).
 """
 
 from __future__ import annotations
@@ -18,31 +19,39 @@ import numpy as np
 from continuum_sim.scenario.config import ScenarioConfig, merged
 from continuum_sim.scenario.runner import run_scenario
 from continuum_sim.scenario.simulate import Observer, Simulation
+from continuum_sim.scenario.video_observer import overlay_text
 
 
 class FrameGrab(Observer):
-    """Renders one frame from the first configured camera the first tick the grinder is cutting."""
+    """Renders one video frame (both cameras, the kerf as cut, the overlay: what ``run --video``
+    draws) the first tick the grinder is cutting past the middle of the cut."""
 
-    def __init__(self, path: Path, camera: str, width: int = 960, height: int = 540) -> None:
-        self.path, self.camera, self.size = path, camera, (height, width)
+    def __init__(self, path: Path, config: ScenarioConfig) -> None:
+        self.path, self.sim_config = path, config.simulation
         self.done = False
 
     def after_tick(self, sim: Simulation) -> str | None:
         if self.done or not sim.plan.cutting[sim.plan_index] or sim.plan_index < np.flatnonzero(sim.plan.cutting).mean():
             return None
+        import pickle
+        import tempfile
+
         import imageio.v2 as imageio
-        import mujoco
 
-        from continuum_sim.video import pose_for_drawing
+        from continuum_sim.video import VideoRecorder
 
-        model = sim.drawable_model  # draws the cables (a native-cable run simulates fixed tendons)
-        data, d = mujoco.MjData(model), sim.data
-        pose_for_drawing(model, data, d.time, d.qpos, d.mocap_pos, d.mocap_quat, sim.model.geom_rgba)
-        model.vis.global_.offwidth = max(model.vis.global_.offwidth, self.size[1])
-        model.vis.global_.offheight = max(model.vis.global_.offheight, self.size[0])
-        with mujoco.Renderer(model, *self.size) as renderer:
-            renderer.update_scene(data, camera=self.camera)
-            imageio.imwrite(self.path, renderer.render())
+        c = self.sim_config
+        model = pickle.loads(pickle.dumps(sim.drawable_model))  # draws the cables; the run's model stays untouched
+        model.geom_rgba[:] = sim.model.geom_rgba
+        with tempfile.TemporaryDirectory() as tmp:
+            video = VideoRecorder(model, Path(tmp) / "frame.mp4", c.cameras, c.video_width, c.video_height,
+                                  workers=0, grid=sim.cutter.grid)
+            try:
+                force = float(np.linalg.norm(sim.cutter.state.force))
+                frame = video.render_frame(sim.data, overlay_text(sim, force) if c.video_overlay else ())
+            finally:
+                video.close(keep=False)
+        imageio.imwrite(self.path, frame)
         self.done = True
         return None
 
@@ -51,11 +60,16 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="runs/readme")
     parser.add_argument("--frame", default="docs/run_frame.png")
+    parser.add_argument("--frame-only", action="store_true", help="only the frame (the closed-loop run up to the cut's end)")
     args = parser.parse_args()
+    if args.frame_only:
+        config = ScenarioConfig.default()
+        run_scenario(config, None, stages=("initial", "clamping", "milling"), observers=[FrameGrab(Path(args.frame), config)])
+        return
     rows = []
     for mode in ("closed", "open"):
         config = merged(ScenarioConfig.default(), {"control": {"mode": mode}})
-        hooks = [FrameGrab(Path(args.frame), config.simulation.cameras[0])] if mode == "closed" else []
+        hooks = [FrameGrab(Path(args.frame), config)] if mode == "closed" else []
         start = time.process_time()
         m = run_scenario(config, Path(args.out) / mode, observers=hooks)
         cpu = time.process_time() - start

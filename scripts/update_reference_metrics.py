@@ -2,7 +2,9 @@
 
 Run this ONLY in a commit that changes the physics or the defaults on purpose (and say so
 in the commit message); ``tests/test_scenario.py::test_default_run_matches_the_stored_reference``
-then checks every later commit against it. ~10 s CPU.
+then checks every later commit against it (outcomes exactly, measured values within the
+tolerances of tests/data/reference_tolerance.json). ~10 s CPU. Then rerun the drift study
+(``python scripts/drift_study.py --write``, ~10 min CPU) so the tolerances match the new reference.
 
     python scripts/update_reference_metrics.py
 """
@@ -29,7 +31,8 @@ def main() -> None:
         shutil.copyfile(out / "config.toml", DATA / "reference_config.toml")
     metrics = json.loads((DATA / "reference_metrics.json").read_text())
     print(f"wrote {DATA / 'reference_metrics.json'}: cutting error mean "
-          f"{metrics['cutting_tip_error_mm']['mean']:.4f} mm, detached {metrics['sample_detached']}")
+          f"{metrics['cutting_tip_error_mm']['mean']:.4f} mm, detached {metrics['sample_detached']}; "
+          "now rerun scripts/drift_study.py --write")
 
 
 if __name__ == "__main__":

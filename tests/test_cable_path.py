@@ -1,4 +1,4 @@
-"""The native cable path (continuum_sim.model.cable_path) against MuJoCo's own spatial tendons.
+"""The native cable path (continuum_sim.plant.cable_path) against MuJoCo's own spatial tendons.
 
 The reference is independent of the kernel: MuJoCo's spatial tendons through the hole
 sites (lengths, Jacobians, velocities, actuator transmissions and the resulting forces
@@ -17,10 +17,13 @@ import numpy as np
 import pytest
 
 from continuum_sim.geometry import ArmGeometry
-from continuum_sim.model import cable_path as cp
-from continuum_sim.model import friction as fr
 from continuum_sim.model.arm import build_single_arm_model
+from continuum_sim.model.friction_options import CableFrictionConfig
 from continuum_sim.model.options import ModelOptions
+from continuum_sim.plant import cable_path as cp
+from continuum_sim.plant import friction as fr
+from continuum_sim.plant import passive
+from continuum_sim.plant.cable_routing import cable_tendons
 
 
 def _arm_root(joint: str, timestep: float = 0.004):
@@ -67,7 +70,7 @@ def test_ball_joints_are_refused_with_a_reason() -> None:
 def test_native_cables_equal_the_spatial_tendons(joint: str) -> None:
     """Lengths, Jacobians, transmissions and generalized forces to 1e-12 (relative to their scale)."""
     native, spatial = cp.compile_native(_arm_root(joint))
-    ids = fr.cable_tendons(spatial)
+    ids = cable_tendons(spatial)
     assert all(native.wrap_type[native.tendon_adr[t]] == mujoco.mjtWrap.mjWRAP_JOINT for t in ids)  # fixed now
     assert cp.native_cables(native) is not None and cp.native_cables(spatial) is None
     d_native, d_spatial = cp.make_data(native), mujoco.MjData(spatial)
@@ -93,7 +96,7 @@ def test_shortened_tendons_give_mujoco_the_same_exact_zeros() -> None:
     root = _arm_root("hinge_pair")
     xml, assets = root.to_xml_string(), root.get_assets()
     spatial = mujoco.MjModel.from_xml_string(xml, assets)
-    ids = fr.cable_tendons(spatial)
+    ids = cable_tendons(spatial)
     full = mujoco.MjModel.from_xml_string(cp.native_cable_xml(xml, spatial, ids), assets)
     short = mujoco.MjModel.from_xml_string(cp.native_cable_xml(xml, spatial, ids), assets)
     cp.shorten_zero_tendons(short, ids)
@@ -132,8 +135,8 @@ def test_native_and_spatial_runs_agree_with_friction(mu: float) -> None:
     same trajectory to round-off (the friction kernel reuses the pieces the native kernel computed)."""
     native, spatial = cp.compile_native(_arm_root("hinge_pair"))
     d_native, d_spatial = cp.make_data(native), mujoco.MjData(spatial)
-    config = fr.CableFrictionConfig(mu=mu)
-    h_native = fr.install_cable_friction(native, d_native, config, kernel=cp.native_cables(native).data_kernel(d_native))
+    config = CableFrictionConfig(mu=mu)
+    h_native = fr.install_cable_friction(native, d_native, config)
     h_spatial = fr.install_cable_friction(spatial, d_spatial, config)
     a, b = _drive(native, d_native, 200), _drive(spatial, d_spatial, 200)
     h_native.check()
@@ -170,23 +173,23 @@ def test_the_guard_spares_other_models_and_flags_unregistered_data() -> None:
                                        np.tile(state0, (2, 1)), np.tile(ctrl, (2, 1, 1)))[0]
     np.testing.assert_array_equal(plain, with_native_live)
 
-    fr._PENDING.clear()
+    passive.raise_pending()  # nothing flagged so far
     stray = mujoco.MjData(native)  # not from make_data
     mujoco.mj_forward(native, stray)
     with pytest.raises(RuntimeError, match="native cables"):
-        fr.raise_pending()
+        passive.raise_pending()
     del d_native, stray
     gc.collect()
 
 
 def test_native_model_is_dropped_with_its_model() -> None:
-    """The registry does not keep freed models (sweeps build many in one process)."""
+    """The dispatch does not keep freed models (sweeps build many in one process)."""
     native, spatial = cp.compile_native(_arm_root("hinge_pair"))
     address = native._address
-    assert address in cp._NATIVE_MODELS
+    assert address in passive._DISPATCH.native_models
     del native, spatial
     gc.collect()
-    assert address not in cp._NATIVE_MODELS
+    assert address not in passive._DISPATCH.native_models
 
 
 def test_two_datas_of_one_model_stepped_in_two_threads_do_not_share_scratch() -> None:
@@ -199,9 +202,8 @@ def test_two_datas_of_one_model_stepped_in_two_threads_do_not_share_scratch() ->
     cables = cp.native_cables(native)
     assert cables is not None
     datas = [cp.make_data(native) for _ in range(2)]
-    handles = [fr.install_cable_friction(native, d, fr.CableFrictionConfig(mu=0.15), kernel=cables.data_kernel(d))
-               for d in datas]
-    assert handles[0].kernel.length is not handles[1].kernel.length
+    handles = [fr.install_cable_friction(native, d, CableFrictionConfig(mu=0.15)) for d in datas]
+    assert handles[0].pieces.length is not handles[1].pieces.length
 
     def run(data: mujoco.MjData, seed: int, out: list[np.ndarray]) -> None:
         out.append(_drive(native, data, 300, seed=seed))
@@ -228,5 +230,4 @@ def test_two_datas_of_one_model_stepped_in_two_threads_do_not_share_scratch() ->
         np.testing.assert_array_equal(together[seed][0], alone[seed])
     for d in datas:
         cp.release_data(d)
-    with pytest.raises(ValueError, match="make_data"):
-        cables.data_kernel(mujoco.MjData(native))
+        assert passive.runtime_of(d) is None

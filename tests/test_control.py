@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from continuum_sim import ArmGeometry, ConfigError, tool_centre_pose
-from continuum_sim.control import ArmController, ControlConfig
+from continuum_sim.control import ControlConfig
+from continuum_sim.control.arm import ArmController
 from continuum_sim.glbackend import choose_gl_backend
 from continuum_sim.model.arm import build_single_arm_model
 from continuum_sim.model.cable_elasticity import cable_stiffness
@@ -53,77 +54,6 @@ def test_control_config_rejects_nonsense():
         ControlConfig(min_tension=-1.0)
     with pytest.raises(ConfigError, match="tension_gain"):
         ControlConfig(tension_gain=float("nan"))
-
-
-def _reference_update(controller: ArmController, geometry, q_plan, tcp_plan, tcp_pos, tcp_mat, dt):
-    """The controller's law written plainly with the vectorised kinematics (no scalar kernels)."""
-    from continuum_sim import kinematics as kin
-
-    config = controller.config
-
-    def commanded(correction, proportional):
-        w = kin.to_bending(q_plan) + correction + proportional
-        theta = np.hypot(w[0::2], w[1::2])
-        scale = np.minimum(1.0, geometry.max_bend / np.maximum(theta, 1e-15))
-        w[0::2] *= scale
-        w[1::2] *= scale
-        return w
-
-    correction, proportional = controller.correction.copy(), controller.proportional.copy()
-    w = commanded(correction, proportional)
-    weights = np.array([1.0, 1.0, 1.0] + [config.orientation_weight] * 3)
-    Rt = controller.base[:3, :3].T  # world -> arm base frame, where the Jacobian lives
-    error = np.concatenate([Rt @ (tcp_plan[:3, 3] - tcp_pos), Rt @ kin.log_so3(tcp_plan[:3, :3] @ tcp_mat.T)]) * weights
-    J = kin.jacobian_bending(geometry, w, tool_length=controller.tool_length)[1] * weights[:, None]
-    if controller.roll_free:  # angular rows about the measured tool x and y axes only
-        select = np.zeros((5, 6))
-        select[:3, :3] = np.eye(3)
-        select[3:, 3:] = (Rt @ tcp_mat[:, :2]).T
-        error, J = select @ error, select @ J
-    step = J.T @ np.linalg.solve(J @ J.T + config.damping * np.eye(len(error)), error)
-    correction = correction + config.outer_gain * dt * step
-    proportional = config.outer_proportional * step
-    norms = np.hypot(correction[0::2], correction[1::2])
-    limit = np.radians(config.max_correction_deg)
-    factor = np.where(norms > limit, limit / np.maximum(norms, 1e-300), 1.0)
-    correction = correction * np.repeat(factor, 2)
-    return kin.cable_lengths_bending(geometry, commanded(correction, proportional)) - controller.offset
-
-
-@pytest.mark.parametrize("roll_free", [False, True])
-def test_fast_control_tick_equals_the_plain_law(roll_free):
-    """The scalar control tick (runs 250×/s per arm) against the law written with numpy."""
-    from continuum_sim import kinematics as kin
-
-    geometry = ArmGeometry.default()
-    rng = np.random.default_rng(11)
-    config = ControlConfig(max_correction_deg=0.1)
-    base = np.eye(4)  # a mount turned and tilted, so the world→base mapping is exercised
-    base[:3, :3] = kin.exp_so3([0.2, -0.1, 1.3])
-    base[:3, 3] = [0.1, -0.05, 0.02]
-    controller = ArmController(geometry, config, base, geometry.tools.grinder_length, 3.0e4, roll_free=roll_free)
-    bound_hit = False
-    for _ in range(30):
-        q = np.concatenate([[rng.uniform(0, 1.5), rng.uniform(-np.pi, np.pi)] for _ in range(3)])
-        target = tool_centre_pose(geometry, q, "grinder", base=base)
-        pos = target[:3, 3] + rng.normal(scale=2e-3, size=3)
-        mat = target[:3, :3] @ kin.exp_so3(rng.normal(scale=0.02, size=3))
-        expected = _reference_update(controller, geometry, q, target, pos, mat, 0.008)
-        got = controller.update(q, target, pos, mat, 0.008)
-        np.testing.assert_allclose(got, expected, atol=1e-12, rtol=0)
-        bound_hit |= bool(np.any(np.hypot(controller.correction[0::2], controller.correction[1::2]) >= np.radians(0.1) - 1e-12))
-    assert bound_hit  # the correction bound was exercised
-
-
-def test_rotation_error_is_the_log_of_the_relative_rotation():
-    from continuum_sim import kinematics as kin
-    from continuum_sim.control import _rotation_error
-
-    rng = np.random.default_rng(2)
-    for scale in (1e-9, 1e-3, 0.5, 2.0, 3.1):
-        Rt, Ra = kin.exp_so3(rng.normal(size=3)), kin.exp_so3(rng.normal(size=3))
-        Rt = kin.exp_so3(scale * rng.normal(size=3) / np.sqrt(3)) @ Ra
-        np.testing.assert_allclose(_rotation_error(Rt, Ra), kin.log_so3(Rt @ Ra.T), atol=1e-9)
 
 
 def test_holding_keeps_the_command_the_grasp_closed_on():

@@ -73,7 +73,7 @@ def test_public_api_fallback_equals_the_raw_address_path(monkeypatch: pytest.Mon
     the bindings (``jit.mujoco_symbols`` None) the cutter calls MuJoCo's public API between
     ``begin`` and ``finish``. Along the L cut (feeding, removal, the recent-centres exclusion)
     both give the same state within 1e-12 (the same C functions: in practice bit for bit)."""
-    from continuum_sim.model import jit
+    from continuum_sim.plant import mujoco_native as jit
 
     native = make()
     monkeypatch.setattr(jit, "mujoco_symbols", lambda *names: None)

@@ -1,4 +1,4 @@
-"""Cable friction in the holes (continuum_sim.model.friction, issue 13).
+"""Cable friction in the holes (continuum_sim.plant.friction, issue 13).
 
 References are independent of the friction kernel: MuJoCo's own spatial-tendon lengths
 and Jacobians for the cable kernel; for the capstan, the tension at the anchor is read
@@ -17,9 +17,11 @@ import pytest
 
 from continuum_sim.configio import ConfigError
 from continuum_sim.geometry import ArmGeometry
-from continuum_sim.model import friction as fr
+from continuum_sim.model import friction_options as fo
 from continuum_sim.model.arm import build_single_arm_model
 from continuum_sim.model.options import ModelOptions
+from continuum_sim.plant import friction as fr
+from continuum_sim.plant.cable_routing import CablePieces, cable_routing
 from continuum_sim.validation import capstan
 
 CABLE = "arm/cable_0_0"  # proximal section, hole at 0°: pulling it bends the section toward +x
@@ -81,19 +83,19 @@ def _section_bend(model, data, ten: int) -> float:
 
 def test_config_validates_itself() -> None:
     with pytest.raises(ConfigError, match="^mu: "):
-        fr.CableFrictionConfig(mu=-0.1)
+        fo.CableFrictionConfig(mu=-0.1)
     with pytest.raises(ConfigError, match="^presliding: "):
-        fr.CableFrictionConfig(presliding=0.0)
-    assert fr.CableFrictionConfig().mu == fr.DEFAULT_MU
+        fo.CableFrictionConfig(presliding=0.0)
+    assert fo.CableFrictionConfig().mu == fo.DEFAULT_MU
 
 
 # ------------------------------------------------------------------------- cable kernel
 @pytest.mark.parametrize("joint", ["hinge_pair", "ball", "hinge_triple"])
 def test_cable_kernel_matches_mujoco_tendons(joint: str) -> None:
-    """Piece lengths summed and local gradients scattered = MuJoCo's ten_length and ten_J."""
+    """Piece lengths summed and local gradients scattered = MuJoCo's ten_length and ten_J (the oracle), 1e-12."""
     model = _compile(ModelOptions(joint=joint, tendons=True))
     data = mujoco.MjData(model)
-    kernel = fr.CableKernel(model)
+    kernel = CablePieces(cable_routing(model))
     assert kernel.routing.n_pieces == 3 * (10 + 20 + 30)
     rng = np.random.default_rng(3)
     for _ in range(2):
@@ -107,7 +109,7 @@ def test_cable_kernel_matches_mujoco_tendons(joint: str) -> None:
             else:
                 data.qpos[a] = rng.normal() * 0.12
         mujoco.mj_forward(model, data)
-        kernel.evaluate(data.qpos)
+        kernel.evaluate(data)
         ids = kernel.routing.tendon_ids
         J = np.zeros((model.ntendon, model.nv))
         mujoco.mju_sparse2dense(
@@ -133,7 +135,7 @@ def test_capstan_over_90_degrees(rig, mu: float) -> None:
     for _attempt in range(4):
         data = mujoco.MjData(model)
         _slack(model, data)
-        handle = fr.install_cable_friction(model, data, fr.CableFrictionConfig(mu=mu))
+        handle = fr.install_cable_friction(model, data, fo.CableFrictionConfig(mu=mu))
         # monotonic loading (the cable only reels in), then hold until static
         _drive(model, data, act, np.linspace(0.0, T, 250), ten)
         _settle(model, data, act, T, ten)
@@ -153,7 +155,7 @@ def test_capstan_over_90_degrees(rig, mu: float) -> None:
     assert ratio == pytest.approx(expected, rel=0.05)
     assert ratio == pytest.approx(np.exp(-mu * np.pi / 2), rel=0.05)
     # the handle's own bookkeeping agrees with the statics
-    c = list(handle.kernel.routing.names).index(CABLE)
+    c = list(handle.routing.names).index(CABLE)
     assert handle.anchor_ratio()[c] == pytest.approx(ratio, rel=0.01)
     handle.uninstall()
 
@@ -163,7 +165,7 @@ def test_frictionless_anchor_carries_the_motor_tension(rig) -> None:
     model, act, ten = rig
     data = mujoco.MjData(model)
     _slack(model, data)
-    handle = fr.install_cable_friction(model, data, fr.CableFrictionConfig(mu=0.0))
+    handle = fr.install_cable_friction(model, data, fo.CableFrictionConfig(mu=0.0))
     assert not handle.active
     T = capstan.tension_for_bend(model, ten, np.pi / 2)
     _drive(model, data, act, np.linspace(0.0, T, 250), ten)
@@ -177,7 +179,7 @@ def _loop(model, act, ten, mu: float) -> tuple[float, float]:
     """Static section bend (deg) at the same motor tension reached by loading and by unloading."""
     data = mujoco.MjData(model)
     _slack(model, data)
-    handle = fr.install_cable_friction(model, data, fr.CableFrictionConfig(mu=mu))
+    handle = fr.install_cable_friction(model, data, fo.CableFrictionConfig(mu=mu))
     top = capstan.tension_for_bend(model, ten, np.radians(80.0))
     mid = 0.55 * top
     _drive(model, data, act, np.linspace(0.0, mid, 250), ten)
@@ -222,11 +224,11 @@ def test_zero_friction_is_bit_identical_and_the_guard_spares_other_models() -> N
     model = _compile(ModelOptions(joint="hinge_pair", timestep=0.004))
     reference = _run(model, mujoco.MjData(model))
     data0 = mujoco.MjData(model)
-    fr.install_cable_friction(model, data0, fr.CableFrictionConfig(mu=0.0))
+    fr.install_cable_friction(model, data0, fo.CableFrictionConfig(mu=0.0))
     np.testing.assert_array_equal(_run(model, data0), reference)
     # another data of the same model (and another model) with friction, live in this process
     other = mujoco.MjData(model)
-    handle = fr.install_cable_friction(model, other, fr.CableFrictionConfig(mu=0.2))
+    handle = fr.install_cable_friction(model, other, fo.CableFrictionConfig(mu=0.2))
     assert mujoco.get_mjcb_passive() is not None
     np.testing.assert_array_equal(_run(model, mujoco.MjData(model)), reference)
     fresh = _compile(
@@ -254,7 +256,7 @@ def test_scenario_records_the_friction_loss_per_cable(tmp_path) -> None:
     from continuum_sim.scenario.trajectory import Trajectory
 
     config = ScenarioConfig.default()
-    assert config.model.cable_friction.mu == fr.DEFAULT_MU
+    assert config.model.cable_friction.mu == fo.DEFAULT_MU
     metrics = run_scenario(config, tmp_path, stages=("initial", "clamping"))
     assert mujoco.get_mjcb_passive() is None  # removed when the run closed
     trajectory = Trajectory.load(tmp_path / "trajectory.npz")
@@ -263,7 +265,7 @@ def test_scenario_records_the_friction_loss_per_cable(tmp_path) -> None:
     assert ratio.min() < 0.97 and ratio.max() > 1.03  # reeled-in cables lose tension, paid-out ones gain
     assert np.all(ratio > np.exp(-config.model.cable_friction.mu * np.pi))  # no cable wraps more than 180°
     friction = metrics["cable_friction"]
-    assert friction["mu"] == fr.DEFAULT_MU
+    assert friction["mu"] == fo.DEFAULT_MU
     all_ratios = np.concatenate([a.cable_anchor_ratio for a in trajectory.arms.values()], axis=1)
     assert friction["anchor_ratio_min"] == pytest.approx(all_ratios.min())
     assert len(friction["anchor_ratio_mean"]["right"]) == ratio.shape[1]

@@ -10,7 +10,8 @@ import pytest
 from continuum_sim import gains
 from continuum_sim import kinematics as kin
 from continuum_sim.configio import ConfigError, from_dict
-from continuum_sim.control import ArmController, ControlConfig
+from continuum_sim.control import ControlConfig
+from continuum_sim.control.arm import ArmController
 from continuum_sim.model.cable_elasticity import cable_stiffness
 from continuum_sim.model.options import model_geometry
 from continuum_sim.model.stiffness import joint_stiffness
@@ -63,11 +64,10 @@ def _settled_bend(cfg, scale: float, w_cmd: np.ndarray) -> np.ndarray:
     data = mujoco.MjData(model)
     k = cable_stiffness(cfg.arm, options)
     offset = cfg.control.pretension / k
-    kernel = kin.CableKernel(geometry)
 
     def settle(w: np.ndarray) -> np.ndarray:
         mujoco.mj_resetData(model, data)
-        data.ctrl[:] = kernel.lengths(w.tolist()) - offset
+        data.ctrl[:] = kin.cable_lengths_bending(geometry, w) - offset
         for _ in range(3000):
             mujoco.mj_step(model, data)
         assert np.abs(data.qvel).max() < 1e-5

@@ -257,32 +257,6 @@ def test_full_disk_keeps_the_metrics(tmp_path):
     assert not (tmp_path / "trajectory.npz").exists()
 
 
-def test_interrupt_inside_the_friction_callback_is_kept_and_reraised(monkeypatch):
-    """Ctrl-C that lands inside MuJoCo's C passive callback (cable friction) cannot propagate through C:
-    it is kept and re-raised after mj_step, not swallowed (the run then looked diverged)."""
-    import mujoco
-
-    from continuum_sim.geometry import ArmGeometry
-    from continuum_sim.model import friction as fr
-    from continuum_sim.model.arm import build_single_arm_model
-    from continuum_sim.model.options import ModelOptions
-
-    root = build_single_arm_model(ArmGeometry.default(), ModelOptions(joint="hinge_pair", timestep=0.004), gravity=False)
-    model = mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
-    data = mujoco.MjData(model)
-    handle = fr.install_cable_friction(model, data, fr.CableFrictionConfig(mu=0.2))
-
-    def interrupted(*args, **kwargs):
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(handle, "apply", interrupted)
-    mujoco.mj_step(model, data)  # the callback runs inside; nothing escapes through C
-    assert isinstance(handle.error, KeyboardInterrupt)
-    with pytest.raises(KeyboardInterrupt):
-        handle.check()
-    handle.uninstall()  # leave no registration behind for the tests after this one
-
-
 @pytest.fixture(scope="module")
 def short_runs(tmp_path_factory):
     """The same short run (first stage only, ~3 s) twice, into two folders."""

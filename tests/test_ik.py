@@ -27,28 +27,6 @@ def planar_q(rng, geometry, n, plane=0.0):
     return q
 
 
-# ------------------------------------------------------------------ fast kernel
-def test_kernel_matches_vectorised_kinematics(geometry):
-    """The scalar ArmKernel equals jacobian_bending, including at and near θ = 0."""
-    rng = np.random.default_rng(0)
-    samples = list(rng.normal(0, 0.8, (60, 6))) + [
-        np.zeros(6),
-        np.array([1e-9, 0.0, 0.0, -1e-9, 3e-5, 0.0]),
-        np.array([1e-3, 2e-3, 0.005, 0.0, 0.0, 0.02]),
-        np.array([5e-5, 5e-5, 0.0099, 0.0, 1e-2, 1e-4]),
-    ]
-    for tool in (0.0, 0.06):
-        kernel = kin.ArmKernel(geometry, tool)
-        for w in samples:
-            T, J = kin.jacobian_bending(geometry, w, tool_length=tool)
-            R, p, Jk = kernel.pose_jacobian(w)
-            np.testing.assert_allclose(np.reshape(R, (3, 3)), T[:3, :3], atol=1e-14)
-            np.testing.assert_allclose(p, T[:3, 3], atol=1e-14)
-            np.testing.assert_allclose(np.reshape(Jk, (6, 6)), J, atol=1e-13)
-            R2, p2, none = kernel.pose_jacobian(w, derivatives=False)
-            assert none is None and R2 == R and p2 == p
-
-
 @pytest.mark.parametrize("orientation,phase", MODES)
 def test_residual_jacobian_matches_finite_differences(geometry, orientation, phase):
     """The Jacobian the solver uses is the derivative of its residual, near and far from the target."""

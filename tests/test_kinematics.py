@@ -148,13 +148,15 @@ def test_jacobian_matches_finite_differences(geometry, tool):
 
 
 def test_bending_jacobian_matches_finite_differences_through_zero(geometry):
+    """The compiled Jacobian (``jacobian_bending``) against the forward kinematics' central differences, mount included."""
     rng = np.random.default_rng(2)
     samples = [np.zeros(6), np.array([1e-9, 0.0, 0.0, 1e-9, -1e-9, 0.0])] + list(rng.normal(0, 0.6, (10, 6)))
-    for w in samples:
-        T, J = kin.jacobian_bending(geometry, w, tool_length=0.06)
-        Jfd = _fd_jacobian(lambda x: kin.forward_kinematics_bending(geometry, x, tool_length=0.06), w)
-        np.testing.assert_allclose(J, Jfd, atol=1e-7, rtol=0)
-        np.testing.assert_allclose(T, kin.forward_kinematics_bending(geometry, w, tool_length=0.06), atol=1e-15)
+    base = kin.forward_kinematics(geometry, [0.3, 0.2, 0.1, -1.0, 0.2, 2.0])  # any rigid transform
+    T, J = kin.jacobian_bending(geometry, np.array(samples), base, tool_length=0.06)  # batched
+    for i, w in enumerate(samples):
+        Jfd = _fd_jacobian(lambda x: kin.forward_kinematics_bending(geometry, x, base, tool_length=0.06), w)
+        np.testing.assert_allclose(J[i], Jfd, atol=1e-7, rtol=0)
+        np.testing.assert_allclose(T[i], kin.forward_kinematics_bending(geometry, w, base, tool_length=0.06), atol=1e-15)
 
 
 def test_batched_calls_equal_single_calls(geometry):
@@ -191,9 +193,10 @@ def test_wrong_q_length_is_rejected(geometry):
         forward_kinematics(geometry, np.zeros(5))
 
 
-def test_cable_kernel_equals_vectorised_cable_lengths(geometry):
-    kernel = kin.CableKernel(geometry)
+def test_cable_lengths_equal_the_vectorised_oracle(geometry):
+    """The compiled cable lengths (one closed form per section) against the per-hole numpy oracle, to 1e-15 m."""
+    import kinematics_oracle as oracle
+
     rng = np.random.default_rng(7)
-    for q in list(random_q(rng, geometry, 20)) + [np.zeros(6)]:
-        w = kin.to_bending(q)
-        np.testing.assert_allclose(kernel.lengths(w), kin.cable_lengths_bending(geometry, w), atol=1e-15, rtol=0)
+    w = kin.to_bending(np.concatenate([random_q(rng, geometry, 20), np.zeros((1, 6))]))
+    np.testing.assert_allclose(kin.cable_lengths_bending(geometry, w), oracle.cable_lengths_bending(geometry, w), atol=1e-15, rtol=0)

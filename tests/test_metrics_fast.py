@@ -4,7 +4,7 @@ exactly the numbers of their plain formulations (written out here as the referen
 import numpy as np
 import pytest
 
-from continuum_sim.scenario import metrics as met
+from continuum_sim import distances as met
 
 
 def reference_polyline_distance(points, polyline):

@@ -6,6 +6,7 @@ import pytest
 
 from continuum_sim.cli import main
 from continuum_sim.model.export import ARM_FILE, DUAL_ARM_FILE, model_xml_texts
+from continuum_sim.scenario.config import ScenarioConfig
 
 import mujoco  # noqa: E402  (export imported the scene, which chose the GL backend)
 
@@ -14,7 +15,8 @@ MODELS = Path(__file__).resolve().parent.parent / "models"
 
 @pytest.fixture(scope="module")
 def fresh() -> dict[str, str]:
-    return model_xml_texts()
+    defaults = ScenarioConfig.default()
+    return model_xml_texts(defaults.arm, defaults.layout, defaults.model, defaults.scene)
 
 
 @pytest.mark.parametrize("name", [DUAL_ARM_FILE, ARM_FILE])

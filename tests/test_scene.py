@@ -308,17 +308,27 @@ def test_look_at_points_the_camera_at_the_target():
 
 
 def test_cameras_see_the_cut(scene):
-    model, data = scene
-    centre = LAYOUT.plate.kerf_polyline().mean(axis=0)
+    model, _ = scene
+    data = mujoco.MjData(model)  # the initial state: the close-up rides with the sample, which other tests move
+    mujoco.mj_forward(model, data)
+    kerf = LAYOUT.plate.kerf_polyline()
+    centre = kerf.mean(axis=0)
     cam = model.camera("closeup").id
-    to_kerf = centre - data.cam_xpos[cam]
     view = -data.cam_xmat[cam].reshape(3, 3)[:, 2]
-    assert np.degrees(np.arccos(view @ to_kerf / np.linalg.norm(to_kerf))) < 2.0
+    for p, limit in ((centre, 5.0), *((q, model.cam_fovy[cam] / 2) for q in kerf)):  # aimed at the kerf; all of it in view
+        to_p = p - data.cam_xpos[cam]
+        assert np.degrees(np.arccos(view @ to_p / np.linalg.norm(to_p))) < limit
+    # The overview is framed on the work (docs/video.md): the plate's corners, the kerf and both
+    # arms 15 cm below the plate (their upper sections) inside the 4:3 frame.
     cam = model.camera("overview").id
-    for p in (np.array(LAYOUT.left.position) + [0, 0, 0.6], np.array(LAYOUT.right.position), centre):
-        d = p - data.cam_xpos[cam]
-        angle = np.degrees(np.arccos(-data.cam_xmat[cam].reshape(3, 3)[:, 2] @ d / np.linalg.norm(d)))
-        assert angle < model.cam_fovy[cam] / 2  # inside the vertical field of view cone
+    plate = LAYOUT.plate
+    x0, y0 = plate.corner_x - plate.size[0], plate.corner_y
+    corners = [np.array([x, y, plate.top_z]) for x in (x0, plate.corner_x) for y in (y0, y0 + plate.size[1])]
+    arms = [np.array(m.position) + [0, 0, plate.top_z - 0.15] for m in (LAYOUT.left, LAYOUT.right)]
+    tan_v = np.tan(np.radians(model.cam_fovy[cam]) / 2)
+    for p in (*corners, *arms, centre):
+        local = (p - data.cam_xpos[cam]) @ data.cam_xmat[cam].reshape(3, 3)  # x right, y up, −z forward
+        assert local[2] < 0 and abs(local[1] / local[2]) < tan_v and abs(local[0] / local[2]) < tan_v * 4 / 3
 
 
 @pytest.mark.parametrize(

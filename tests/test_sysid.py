@@ -197,7 +197,7 @@ def test_cable_friction_acts_inside_the_batched_replay(base: ScenarioConfig, rec
     import mujoco
 
     from continuum_sim.configio import get_path
-    from continuum_sim.model.friction import install_cable_friction
+    from continuum_sim.plant.friction import install_cable_friction
     from continuum_sim.sysid.plant import build_replay_model, control_matrix
 
     try:

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from continuum_sim import distances
 from continuum_sim.glbackend import choose_gl_backend
 from continuum_sim.scenario import metrics as met
 
@@ -45,7 +46,7 @@ def test_video_recorder_writes_tiled_mp4_atomically(tmp_path):
     assert not list(tmp_path.glob(".*partial*"))
 
 
-def _record_clip(path, workers: int, chunk_frames: int = 60) -> int:
+def _record_clip(path, workers: int, chunk_frames: int = 60, reports: list | None = None) -> int:
     """Record 0.5 s of the falling box; the box turns invisible at t = 0.25 s (a run changing colours)."""
     from continuum_sim.video import VideoRecorder
 
@@ -59,6 +60,9 @@ def _record_clip(path, workers: int, chunk_frames: int = 60) -> int:
                 model.geom_rgba[box, 3] = 0.0
             video.maybe_capture(data)
             assert not path.exists()
+        if reports is not None:  # the frames still encoding, chunk by chunk (the run's "video" bar)
+            video.wait_for_workers(reports.append)
+            assert not path.exists()  # joined only by close()
     return video.frames
 
 
@@ -76,7 +80,9 @@ def test_parallel_video_workers_match_in_process_rendering(tmp_path):
     frames the in-process renderer gives, colour changes included, and leave no temporaries."""
     serial, parallel = tmp_path / "serial.mp4", tmp_path / "parallel.mp4"
     assert _record_clip(serial, workers=0) == 11
-    assert _record_clip(parallel, workers=2, chunk_frames=4) == 11
+    reports: list[int] = []
+    assert _record_clip(parallel, workers=2, chunk_frames=4, reports=reports) == 11
+    assert sorted(reports) == [3, 4, 4]  # every chunk reported once, with its frame count
     a, b = _read_frames(serial), _read_frames(parallel)
     assert a.shape == b.shape == (11, 120, 320, 3)
     assert np.abs(a - b).mean() < 2.0  # same pictures up to the encoder's rounding
@@ -97,22 +103,22 @@ def test_video_recorder_rejects_unknown_camera(tmp_path):
 def test_polyline_distance_and_axis_angle():
     line = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]])
     pts = np.array([[0.5, 0.2], [1.3, 0.5], [2.0, 2.0], [-1.0, 0.0]])
-    np.testing.assert_allclose(met.polyline_distance(pts, line), [0.2, 0.3, np.sqrt(2), 1.0])
+    np.testing.assert_allclose(distances.polyline_distance(pts, line), [0.2, 0.3, np.sqrt(2), 1.0])
     axes = np.array([[0.0, 0.0, 1.0], [np.sin(0.1), 0.0, np.cos(0.1)]])
-    np.testing.assert_allclose(met.axis_angle_deg(axes, np.array([0, 0, 2.0])), [0.0, np.degrees(0.1)], atol=1e-12)
+    np.testing.assert_allclose(distances.axis_angle_deg(axes, np.array([0, 0, 2.0])), [0.0, np.degrees(0.1)], atol=1e-12)
 
 
 def test_backbone_distance_is_centre_gap_minus_radii():
     a = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     b = np.array([[0.5, 0.0, 1.0], [3.0, 0.0, 0.0]])
-    assert met.min_backbone_distance(a, np.array([0.1, 0.1]), b, np.array([0.05, 0.05])) == pytest.approx(0.35)
+    assert distances.min_backbone_distance(a, np.array([0.1, 0.1]), b, np.array([0.05, 0.05])) == pytest.approx(0.35)
 
 
 def test_backbone_distance_series_equals_the_per_frame_distance():
     rng = np.random.default_rng(5)
     a, b = rng.normal(size=(300, 7, 3)), rng.normal(size=(300, 5, 3))  # > one chunk of frames
     ra, rb = rng.uniform(0.0, 0.2, 7), rng.uniform(0.0, 0.2, 5)
-    series = met.min_backbone_distances(a, ra, b, rb, chunk=64)
+    series = distances.min_backbone_distances(a, ra, b, rb, chunk=64)
     direct = [np.min(np.linalg.norm(a[i][:, None] - b[i][None], axis=-1) - ra[:, None] - rb[None]) for i in range(300)]
     np.testing.assert_allclose(series, direct, atol=1e-14)
 

@@ -16,6 +16,7 @@ from pathlib import Path
 from ..configio import atomic_write_text
 from ..geometry import ArmGeometry
 from ..layout import TaskLayout
+from .arm import build_single_arm_model
 from .options import ModelOptions
 from .scene import SceneOptions, build_scene
 
@@ -26,26 +27,13 @@ PRECISION = 12
 ZERO_THRESHOLD = 1e-14
 
 
-def model_xml_texts(
-    geometry: ArmGeometry | None = None,
-    layout: TaskLayout | None = None,
-    options: ModelOptions | None = None,
-    scene: SceneOptions | None = None,
-) -> dict[str, str]:
+def model_xml_texts(geometry: ArmGeometry, layout: TaskLayout, options: ModelOptions, scene: SceneOptions) -> dict[str, str]:
     """{file name: MJCF text} of every exported model (pure; writes nothing).
 
-    Unset parts come from the shipped scenario defaults (``ScenarioConfig.default()``), so the
-    exported ``dual_arm.xml`` is the model ``continuum-sim run`` simulates (its joint type,
-    segment count and timestep), and ``arm.xml`` is one of its arms.
+    ``continuum-sim build-model`` passes the parts of the shipped scenario defaults
+    (``ScenarioConfig.default()``), so the exported ``dual_arm.xml`` is the scene ``continuum-sim
+    run`` builds (its joint type, segment count and timestep), and ``arm.xml`` is one of its arms.
     """
-    from ..scenario.config import ScenarioConfig  # lazily: the scenario package imports this one's builders
-    from .arm import build_single_arm_model
-
-    defaults = ScenarioConfig.default()
-    geometry = defaults.arm if geometry is None else geometry
-    layout = defaults.layout if layout is None else layout
-    options = defaults.model if options is None else options
-    scene = defaults.scene if scene is None else scene
     roots = {
         DUAL_ARM_FILE: build_scene(geometry, layout, options, scene),
         ARM_FILE: build_single_arm_model(geometry, options, "none"),
@@ -58,13 +46,8 @@ def model_xml_texts(
     return texts
 
 
-def export_models(
-    out_dir: str | os.PathLike[str] = "models",
-    geometry: ArmGeometry | None = None,
-    layout: TaskLayout | None = None,
-    options: ModelOptions | None = None,
-    scene: SceneOptions | None = None,
-) -> list[Path]:
+def export_models(out_dir: str | os.PathLike[str], geometry: ArmGeometry, layout: TaskLayout, options: ModelOptions,
+                  scene: SceneOptions) -> list[Path]:
     """Write every model into ``out_dir`` (atomically); returns the written paths."""
     out = Path(out_dir)
     paths = []

@@ -8,7 +8,7 @@ from typing import Literal
 
 from ..configio import ConfigError, require_int, require_positive, require_range
 from ..geometry import ArmGeometry
-from .friction import CableFrictionConfig
+from .friction_options import CableFrictionConfig
 
 
 @dataclass(frozen=True)
@@ -66,12 +66,12 @@ class ModelOptions:
     jacobian: Literal["auto", "dense", "sparse"] = "auto"  # MuJoCo's constraint Jacobian storage
     impratio: float = 100.0  # friction-to-normal impedance ratio (elliptic cones): high = little frictional creep
     tendons: bool = True  # False: joints only (for benchmarks and pure-beam tests)
-    # How a scenario run evaluates the cables (model/cable_path.py): "native" = fixed tendons
+    # How a scenario run evaluates the cables (plant/cable_path.py): "native" = fixed tendons
     # whose exact lengths and Jacobians a compiled kernel writes in the passive stage (the
     # spatial tendons' numbers to ~1e-15 m, a third less CPU per step); "spatial" = MuJoCo's
     # own spatial tendons (the plain path; what models/ holds and the video draws).
     cable_path: Literal["native", "spatial"] = "native"
-    # Friction of the cables in the disk holes: capstan loss with stick/slip (model/friction.py,
+    # Friction of the cables in the disk holes: capstan loss with stick/slip (plant/friction.py,
     # docs/friction.md); mu = 0 installs nothing.
     cable_friction: CableFrictionConfig = field(default_factory=CableFrictionConfig)
 

@@ -95,7 +95,6 @@ def _add_assets_and_visuals(root: mjcf.RootElement, scene: SceneOptions) -> None
     root.asset.add("material", name="floor", texture="floor", texrepeat=(5, 5), texuniform=True, reflectance=0.1)
     root.asset.add("material", name="foam", rgba=(0.93, 0.86, 0.55, 1.0))
     root.asset.add("material", name="sample", rgba=(0.95, 0.55, 0.25, 1.0))
-    root.asset.add("material", name="kerf", rgba=(0.62, 0.47, 0.27, 1.0))
     root.asset.add("material", name="metal", rgba=(0.45, 0.47, 0.5, 1.0), specular=0.5, shininess=0.5)
     root.asset.add("material", name="wood", rgba=(0.55, 0.4, 0.28, 1.0))
     visual_global = getattr(root.visual, "global")  # `global` is a Python keyword
@@ -172,14 +171,16 @@ def _add_plate(root: mjcf.RootElement, layout: TaskLayout, scene: SceneOptions, 
     _box(body, "plate_main", (ext["x0"], ext["y0"], bottom), (ext["xk"], ext["y1"], top), origin, material="foam", **foam)
     _box(body, "plate_side", (ext["xk"], ext["yk"], bottom), (ext["x1"], ext["y1"], top), origin, material="foam", **foam)
     # The kerf band is foam too (the voxels cut it), but no contact geom: the sample has to
-    # leave through it. These two boxes only show it; the cutter hides them at detachment.
+    # leave through it. These two boxes only show it, as uncut foam (so no picture shows the
+    # cut before it is made); the cutter hides them at detachment, and the video draws the
+    # band from the cutter's voxels instead (``video_foam``).
     kerf_x = ext["xk"] + plate.kerf_width
     kerf_y = ext["yk"] - plate.kerf_width
     for name, lo, hi in (
         (KERF_BAND[0], (ext["xk"], ext["y0"], bottom), (kerf_x, ext["yk"], top)),
         (KERF_BAND[1], (kerf_x, kerf_y, bottom), (ext["x1"], ext["yk"], top)),
     ):
-        _box(body, name, lo, hi, origin, material="kerf", contype=0, conaffinity=0, mass=0)
+        _box(body, name, lo, hi, origin, material="foam", contype=0, conaffinity=0, mass=0)
     for name, p in zip(("kerf_start", "kerf_corner", "kerf_end"), plate.kerf_polyline()):
         body.add("site", name=name, pos=tuple(p - origin), size=(0.002,), rgba=(1, 0, 0, 0.6))
 
@@ -210,16 +211,21 @@ def _add_cameras(root: mjcf.RootElement, layout: TaskLayout) -> None:
     plate = layout.plate
     kerf = plate.kerf_polyline()
     kerf_centre = kerf.mean(axis=0) - np.array([0.0, 0.0, plate.thickness / 2])
-    arms_mid = (np.asarray(layout.left.position) + np.asarray(layout.right.position)) / 2
-    # Framed on the work: from the pack's top to the tools above the plate, both arms and
-    # the plate's corner, seen a little from above so the plate is not edge-on.
-    overview_target = arms_mid + np.array([0.0, 0.04, 0.34])
-    overview_pos = overview_target + np.array([0.38, -0.74, 0.30])
+    # Overview, framed on the work (docs/video.md): the plate, the clamp, both tools and the
+    # arms' upper sections, from the front right and above, so the floor (not the sky) is
+    # behind the plate and the plate spans about half the tile's width.
+    overview_target = plate.centre + np.array([0.03, -0.06, -0.04])
+    overview_pos = overview_target + np.array([0.22, -0.34, 0.25])
     root.worldbody.add("camera", name="overview", pos=tuple(overview_pos), xyaxes=look_at(overview_pos, overview_target), fovy=45)
-    # From above, in front: the cutter tip breaks through the top face, cells vanish, and
-    # the arms (which come from below) do not block the view.
-    close_pos = kerf_centre + np.array([0.08, -0.17, 0.15])
-    root.worldbody.add("camera", name="closeup", pos=tuple(close_pos), xyaxes=look_at(close_pos, kerf_centre), fovy=40)
+    # Close-up from above, in front: the cutter comes from below, so the slot it leaves opens
+    # in the top face as the voxels go, and the arms do not block the view. The camera rides
+    # with the sample (mode "track": a fixed offset in world axes from the sample body), so it
+    # stays on the kerf while the sample is welded and follows the sample once it is cut free.
+    target = (kerf_centre + plate.sample_centre) / 2
+    close_pos = target + np.array([0.05, -0.12, 0.14])
+    sample = root.worldbody.find("body", SAMPLE_BODY)
+    sample.add("camera", name="closeup", mode="track", pos=tuple(close_pos - np.asarray(sample.pos, float)),
+               xyaxes=look_at(close_pos, target), fovy=40)
 
 
 def _attach_tool(

@@ -1,1 +1,1 @@
-"""Runtime physics MuJoCo does not have: cable path and friction, motors and spindle drive, foam and cutter."""
+"""The runtime physics MuJoCo does not have (cable path, cable friction, motors, cutter): compiled kernels and their hooks."""

@@ -48,13 +48,13 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from ..model.jit import sigint_deferred
 from ..model.scene_options import FoamOptions
 from ..model.tools import CUTTER_GEOM, GRINDER
 from . import cutter_kernels as ck
 from . import foam
-from .addresses import mujoco_functions
 from .foam import FoamGrid
+from .jit import sigint_deferred
+from .mujoco_native import mujoco_functions
 from .spindle import SpindleDrive
 
 

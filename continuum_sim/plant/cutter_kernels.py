@@ -5,7 +5,7 @@ the leading half circle with the recent-centres exclusion) and ``finish`` (the c
 with the implicit feed, removal, the block spring, the wrench, the spindle load, the
 observer's sums) share one ``CUTTER`` record; between them the caller fills the cutter
 point's Jacobian and ``M⁻¹Jᵀ`` if ``begin`` asks for them. ``tick`` is the three in one call,
-``mj_jac``/``mj_solveM`` called by address (``addresses``); without MuJoCo's library by path
+``mj_jac``/``mj_solveM`` called by address (``mujoco_native``); without MuJoCo's library by path
 the cutter calls ``begin``, MuJoCo's public API, ``finish``. The physics is described in
 ``plant/cutter.py``.
 """
@@ -17,8 +17,8 @@ import math
 import numpy as np
 from numba import carray
 
-from ..model.jit import jit
-from .addresses import call_jac, call_solve, f64
+from .jit import jit
+from .mujoco_native import call_jac, call_solve, f64
 
 # The cutter's constants, state and last step's outputs (one record per cutter).
 CUTTER = np.dtype([

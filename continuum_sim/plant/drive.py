@@ -33,8 +33,8 @@ from numpy.typing import NDArray
 
 from ..geometry import ArmGeometry
 from ..model.cable_elasticity import implicit_spring_step, rope_axial_stiffness
-from ..model.jit import jit
 from ..model.options import ModelOptions
+from .jit import jit
 from .spindle import SpindleDrive
 
 Array = NDArray[np.float64]

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ..model.jit import jit
+from .jit import jit
 
 
 class FoamGrid:

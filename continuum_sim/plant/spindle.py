@@ -20,9 +20,9 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from ..model.jit import jit
 from ..model.scene_options import ToolOptions
 from ..model.tools import GRINDER, SPINDLE_JOINT
+from .jit import jit
 
 # The drive's options and state in one record (``SpindleDrive.record``): what the compiled
 # loop reads and writes.

@@ -1,6 +1,6 @@
 """Cable friction in a scenario run: install it on the run's data, record the loss per cable.
 
-The physics lives in ``continuum_sim.model.friction`` (a passive-force callback acting
+The physics lives in ``continuum_sim.plant.friction`` (a passive-force callback acting
 inside every ``mj_step``); this observer installs it when the run starts (after the
 priming commands), records each cable's anchor-to-motor tension ratio on the recorder's
 ticks (the trajectory's ``<arm>_cable_anchor_ratio``) and removes it when the run ends.
@@ -13,8 +13,9 @@ from typing import Any
 
 import numpy as np
 
-from ..model.cable_path import native_cables
-from ..model.friction import CableFriction, CableFrictionConfig, install_cable_friction, raise_pending
+from ..model.friction_options import CableFrictionConfig
+from ..plant.friction import CableFriction, install_cable_friction
+from ..plant.passive import raise_pending
 from .simulate import Observer, Simulation
 
 
@@ -31,10 +32,9 @@ class CableFrictionObserver(Observer):
     def start(self, sim: Simulation) -> None:
         h = sim.handles
         tendons = np.concatenate([np.asarray(h.cable_tendons[arm], dtype=np.int64) for arm in h.arms])
-        native = native_cables(sim.model)  # its kernel evaluates the pieces first in the same callback
-        self.handle = install_cable_friction(sim.model, sim.data, self.config, None if native else tendons,
-                                             None if native is None else native.data_kernel(sim.data))
-        index = {int(t): i for i, t in enumerate(self.handle.kernel.routing.tendon_ids)}
+        # (on the native cable path friction takes that path's routing and reads its pieces)
+        self.handle = install_cable_friction(sim.model, sim.data, self.config, tendons)
+        index = {int(t): i for i, t in enumerate(self.handle.routing.tendon_ids)}
         self.columns = {arm: np.array([index[int(t)] for t in h.cable_tendons[arm]]) for arm in h.arms}
         self.rows = {arm: [] for arm in h.arms}
 

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 from importlib import resources
 from typing import Any
 
-from ..configio import ConfigError, config_from_file, from_dict, require_int, require_range, save_toml, to_dict
-from ..control import ControlConfig
+from ..configio import ConfigError, config_from_file, dumps_toml, from_dict, require_int, require_range, save_toml, to_dict
+from ..control.config import ControlConfig
 from ..geometry import ArmGeometry
 from ..layout import TaskLayout
 from ..model.options import ModelOptions
@@ -51,6 +51,7 @@ class SimulationConfig:
     record_hz: float = 62.5  # time-series sampling rate (rounded to whole control ticks)
     video_fps: float = 20.0
     video_shadows: bool = False  # shadows and MSAA triple the frame time under software GL
+    video_overlay: bool = True  # time, stage, cut %, spindle speed, cutting force over the frames (docs/video.md)
     video_width: int = 640
     video_height: int = 480
     cameras: tuple[str, ...] = ("overview", "closeup")
@@ -62,6 +63,8 @@ class SimulationConfig:
         require_range("video_fps", self.video_fps, 1.0, 120.0, low_inclusive=True)
         require_int("video_width", self.video_width, 16, 4096)
         require_int("video_height", self.video_height, 16, 4096)
+        if not isinstance(self.video_overlay, bool):
+            raise ConfigError("video_overlay", f"must be true or false (got {self.video_overlay!r})")
         if not self.cameras:
             raise ConfigError("cameras", "must name at least one camera")
 
@@ -123,6 +126,4 @@ DEFAULTS_HEADER = """\
 
 def default_scenario_toml() -> str:
     """The text of the shipped defaults file, generated from the dataclass defaults."""
-    from ..configio import dumps_toml
-
     return DEFAULTS_HEADER + dumps_toml(to_dict(ScenarioConfig()))

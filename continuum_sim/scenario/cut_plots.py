@@ -29,7 +29,8 @@ def write_cutting_plots(record: CuttingRecord, t: np.ndarray, kerf_polyline: np.
     fig, ax = plt.subplots(figsize=(6, 5))
     nx, ny = record.kerf_map.shape
     extent = (lo[0] * 1e3, (lo[0] + nx * h[0]) * 1e3, lo[1] * 1e3, (lo[1] + ny * h[1]) * 1e3)
-    ax.imshow(record.kerf_map.T, origin="lower", extent=extent, cmap="Oranges", vmin=0, vmax=1, interpolation="nearest")
+    image = ax.imshow(record.kerf_map.T, origin="lower", extent=extent, cmap="Oranges", vmin=0, vmax=1, interpolation="nearest")
+    fig.colorbar(image, ax=ax, shrink=0.8, label="removed fraction of the voxel column")
     line = np.asarray(kerf_polyline)[:, :2] * 1e3
     ax.plot(line[:, 0], line[:, 1], "b--", lw=1, label="planned kerf centre")
     ok = ~np.isnan(widths)
@@ -40,7 +41,7 @@ def write_cutting_plots(record: CuttingRecord, t: np.ndarray, kerf_polyline: np.
     ax.set_aspect("equal")
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
-    ax.set_title("the cut (orange: removed fraction of each voxel column)")
+    ax.set_title("the cut from above")
     ax.legend(loc="lower left", fontsize=7)
     paths.append(atomic_write_figure(fig, Path(out_dir) / "cut_kerf.png"))
 

@@ -98,16 +98,22 @@ def section_angles_plot(path: Path, series, plan) -> None:
     atomic_write_figure(fig, path)
 
 
+TIP_ERROR_FLOOR_MM = 1e-3  # 1 µm: below it the log axis shows round-off at the first samples, not the arms
+
+
 def tip_error_plot(path: Path, series, plan) -> None:
-    """Tool-centre error of both arms over time, stages shaded."""
+    """Tool-centre error of both arms over time, stages shaded (log axis from 1 µm; smaller errors drawn at 1 µm)."""
     plt = _plt()
     t = series["t"]
     fig, ax = plt.subplots(figsize=(12, 4))
     _shade_stages(ax, t, series["stage"].astype(int), tuple(plan.stage_names))
+    top = TIP_ERROR_FLOOR_MM
     for arm, colour in (("left", "#d62728"), ("right", "#1f77b4")):
         err = np.linalg.norm(series[f"{arm}_tcp_pos"] - series[f"{arm}_tcp_plan"][:, :3, 3], axis=1) * 1000
-        ax.plot(t, err, color=colour, lw=1, label=f"{arm} tool-centre error")
+        ax.plot(t, np.maximum(err, TIP_ERROR_FLOOR_MM), color=colour, lw=1, label=f"{arm} tool-centre error")
+        top = max(top, float(np.nanmax(err, initial=0.0)))
     ax.set_yscale("log")
+    ax.set_ylim(TIP_ERROR_FLOOR_MM, 2.0 * top)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("error [mm]")
     ax.grid(alpha=0.3, which="both")
@@ -116,11 +122,12 @@ def tip_error_plot(path: Path, series, plan) -> None:
 
 
 def tension_plot(path: Path, series, plan) -> None:
-    """Cable tensions of both arms over time."""
+    """Cable tensions of both arms over time; one legend for both panels (the same cables and stages), on the right."""
     plt = _plt()
     t = series["t"]
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4), sharey=True)
-    for ax, arm in zip(axes, ("left", "right")):
+    fig, axes = plt.subplots(1, 3, figsize=(13.5, 4), gridspec_kw={"width_ratios": (1.0, 1.0, 0.26)})
+    axes[1].sharey(axes[0])
+    for ax, arm in zip(axes[:2], ("left", "right")):
         _shade_stages(ax, t, series["stage"].astype(int), tuple(plan.stage_names))
         tension = series[f"{arm}_cable_tension"]
         for c in range(tension.shape[1]):
@@ -129,7 +136,9 @@ def tension_plot(path: Path, series, plan) -> None:
         ax.set_xlabel("time [s]")
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("tension [N]")
-    axes[0].legend(fontsize=7, ncol=3)
+    axes[2].axis("off")
+    handles, labels = axes[0].get_legend_handles_labels()
+    axes[2].legend(handles, labels, fontsize=7, loc="center left", title="cable (section_index), stage", title_fontsize=7)
     atomic_write_figure(fig, path)
 
 

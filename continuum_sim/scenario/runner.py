@@ -22,16 +22,19 @@ import mujoco
 import numpy as np
 
 from .. import kinematics as kin
-from ..configio import atomic_write_text
+from ..configio import atomic_write_bytes, atomic_write_text
 from ..controllers import ControlContext, Controller, controller_spec, load_controller
+from ..distances import min_backbone_distances
 from ..limits import check_run_length, check_scenario
-from ..model.cable_path import release_data
 from ..model.handles import SceneHandles
 from ..model.options import model_geometry
 from ..model.state import set_arm_configuration
+from ..plant.cable_path import native_cable_xml, release_data
+from ..plant.cable_routing import cable_tendons
 from ..toolpath import TaskPlan, plan_task
 from . import metrics as met
 from .cable_friction import CableFrictionObserver
+from .compile_notice import compile_notice
 from .config import ScenarioConfig
 from .simulate import (
     CutterObserver,
@@ -41,10 +44,10 @@ from .simulate import (
     ProgressObserver,
     Recorder,
     Simulation,
-    VideoObserver,
     simulate,
 )
 from .trajectory import ArmTrajectory, Trajectory
+from .video_observer import VideoObserver
 
 
 class SimulationDiverged(RuntimeError):
@@ -68,6 +71,14 @@ def run_scenario(
     one; ``observers`` are extra tick-loop hooks (run after the built-in cutter and
     recorder, before the health check).
     """
+    # One line on stderr while numba compiles the kernels its cache lacks (the first run on a fresh clone).
+    with compile_notice(enabled=progress):
+        return _run(config, out_dir, video=video, stages=stages, progress=progress, controller=controller, observers=observers)
+
+
+def _run(config: ScenarioConfig, out_dir: Path | None, *, video: bool, stages: tuple[str, ...] | None, progress: bool,
+         controller: Controller | None, observers: Sequence[Observer]) -> dict[str, Any]:
+    """``run_scenario``'s pipeline."""
     clock = _Clock()
     out = None if out_dir is None else Path(out_dir)
     config = with_stable_step(config)  # stiff cables: a smaller whole fraction of model.timestep
@@ -78,18 +89,19 @@ def run_scenario(
     check_run_length(config, end_time)  # and before building or writing anything: steps per run
     root, model, render_model = build_run_model(config)
     if out is not None:
-        start_run_dir(out, config, root)
+        start_run_dir(out, config, root, model, render_model)
     sim = make_simulation(config, plan, model, controller or load_controller(controller_spec(config)))
     sim.render_model = render_model
     every = round(1.0 / (config.simulation.record_hz * sim.control_period))
     cutter = CutterObserver(sim, every)
+    sim.cutter = cutter.cutter  # what observers show of the cut (the video's kerf and overlay)
     recorder = Recorder(every, cutter)
     friction = CableFrictionObserver(config.model.cable_friction, recorder.every)  # acts inside mj_step
     hooks: list[Observer] = [cutter, recorder, friction, *observers, HealthCheck()]
-    if video and out is not None:
-        hooks.append(VideoObserver(sim, out / "video.mp4", config.simulation))
-    if progress:
+    if progress:  # before the video: its bar closes at the end of the physics, then the video's shows the encoding
         hooks.append(ProgressObserver(end_time))
+    if video and out is not None:
+        hooks.append(VideoObserver(sim, out / "video.mp4", config.simulation, progress=progress))
     clock.lap("model_build_and_setup")
     try:
         result = simulate(sim, int(np.ceil(end_time / sim.control_period)), hooks)
@@ -109,10 +121,11 @@ def run_scenario(
 
 
 class _Clock:
-    """Wall-clock laps for ``wall_breakdown_s`` (machine-dependent; never compared)."""
+    """Wall-clock laps for ``wall_breakdown_s`` and the run's CPU time (machine-dependent; never compared)."""
 
     def __init__(self) -> None:
         self.start = self.last = time.perf_counter()
+        self.cpu_start = time.process_time()
         self.laps: dict[str, float] = {}
 
     def lap(self, name: str) -> None:
@@ -168,8 +181,8 @@ def build_run_model(config: ScenarioConfig) -> tuple[Any, mujoco.MjModel, mujoco
     if config.model.cable_path == "spatial" or not config.model.tendons or config.model.joint == "ball":
         root, model = build_scene_model(config)
         return root, model, model
-    from ..model.cable_path import compile_native
     from ..model.scene import build_scene
+    from ..plant.cable_path import compile_native
 
     root = build_scene(config.arm, config.layout, config.model, config.scene)
     model, spatial = compile_native(root)
@@ -178,7 +191,7 @@ def build_run_model(config: ScenarioConfig) -> tuple[Any, mujoco.MjModel, mujoco
 
 def make_simulation(config: ScenarioConfig, plan: TaskPlan, model: mujoco.MjModel, controller: Controller) -> Simulation:
     """The run's state: both arms in the plan's first configuration, ids resolved, controller context."""
-    from ..model.cable_path import make_data
+    from ..plant.cable_path import make_data
 
     geometry = model_geometry(config.arm, config.model)
     data = make_data(model)  # registered with the native cable path when the model has one
@@ -211,7 +224,7 @@ def make_trajectory(series: dict[str, np.ndarray], handles: SceneHandles, plan: 
         fields = {name: series[f"{arm}_{name}"] for name in ArmTrajectory.__dataclass_fields__ if name != "q_cmd"}
         arms[arm] = ArmTrajectory(q_cmd=kin.from_bending(series[f"{arm}_w_cmd"]), **fields)
     first, second = handles.arms
-    distance = met.min_backbone_distances(arms[first].disk_pos, handles.disk_radii[first],
+    distance = min_backbone_distances(arms[first].disk_pos, handles.disk_radii[first],
                                           arms[second].disk_pos, handles.disk_radii[second])
     clock.lap("metrics")
     c = cutter.cutter
@@ -221,6 +234,7 @@ def make_trajectory(series: dict[str, np.ndarray], handles: SceneHandles, plan: 
         cell_removal_times=c.removal_time.copy(), detach_time=c.detach_time, stages_run=stages_run,
         cutting=cutter.cutting.record().arrays(),
         failure=failure, wall_breakdown_s=dict(clock.laps), wall_seconds=clock.last - clock.start,
+        cpu_seconds=time.process_time() - clock.cpu_start,
     )
 
 
@@ -250,13 +264,49 @@ def metrics_text(metrics: dict[str, Any]) -> str:
     return json.dumps(metrics, indent=2, sort_keys=True)
 
 
-def start_run_dir(out_dir: Path, config: ScenarioConfig, root: Any) -> None:
-    """Before simulating: the configuration and the exact model of the run."""
-    from dm_control import mjcf
+NATIVE_MODEL_NOTE = """\
+<!-- The model this run simulated (continuum_sim, model.cable_path = "native"; docs/architecture.md).
+  Every arm cable is a fixed tendon over the joints it spans, all coefficients 0: MuJoCo's own tendon
+  length, Jacobian and force are 0, and at every step the native cable kernel (model/cable_path.py),
+  called from MuJoCo's passive-force callback, writes each cable's exact length, Jacobian, spring and
+  damper force and actuator moments. Plain MuJoCo loads this file (the same bodies, joints, actuators,
+  tendons and options: tests/test_scenario.py) but without that callback the cables pull nothing.
+  scene_spatial.xml is the same scene with MuJoCo's own spatial tendons: plain MuJoCo simulates it,
+  with cable forces that agree with the native path to about 1e-13 relative (tests/test_cable_path.py).
+  One run-time edit is not in this file: after compiling, each cable tendon's wrap count is cut to 1
+  (model.cable_path.shorten_zero_tendons; speed only, MuJoCo then writes the same zeros). -->
+"""
 
+
+def run_model_files(root: Any, model: mujoco.MjModel, render_model: mujoco.MjModel) -> dict[str, str | bytes]:
+    """{file name: content} of a run folder's ``model/``: ``scene.xml`` is the model that was simulated.
+
+    With the native cable path (``model is not render_model``) that is the scene's MJCF with the
+    cables as zero-coefficient fixed tendons (``model.cable_path.native_cable_xml``, the text
+    ``compile_native`` compiled) and a note on the kernel that drives them; ``scene_spatial.xml``
+    is the spatial twin (what the video draws and ``models/`` holds). Assets (none in the
+    shipped scene) are written beside them under the names the XML uses.
+    """
+    xml = root.to_xml_string()
+    files: dict[str, str | bytes] = dict(root.get_assets())
+    if model is render_model:
+        files["scene.xml"] = xml
+        return files
+    files["scene.xml"] = NATIVE_MODEL_NOTE + native_cable_xml(xml, render_model, cable_tendons(render_model))
+    files["scene_spatial.xml"] = xml
+    return files
+
+
+def start_run_dir(out_dir: Path, config: ScenarioConfig, root: Any, model: mujoco.MjModel,
+                  render_model: mujoco.MjModel) -> None:
+    """Before simulating: the configuration and the model of the run (``run_model_files``)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     config.save_toml(out_dir / "config.toml")
-    mjcf.export_with_assets(root, str(out_dir / "model"), "scene.xml")
+    for name, content in run_model_files(root, model, render_model).items():
+        if isinstance(content, bytes):
+            atomic_write_bytes(out_dir / "model" / name, content)
+        else:
+            atomic_write_text(out_dir / "model" / name, content)
 
 
 def write_run(out_dir: Path, trajectory: Trajectory, metrics: dict[str, Any], plan: TaskPlan,

@@ -57,6 +57,9 @@ class Simulation:
     # The model to draw (same state layout as ``model``): the spatial twin of a native-cable
     # model, whose fixed-tendon cables MuJoCo does not draw (model.cable_path); None: ``model``.
     render_model: mujoco.MjModel | None = None
+    # The foam cutter (``plant.cutter.FoamCutter``: its voxel grid, cut progress, spindle), set
+    # by the runner for observers that show it (the video); None: a run without one.
+    cutter: Any = None
 
     @property
     def drawable_model(self) -> mujoco.MjModel:
@@ -384,28 +387,6 @@ class Recorder(Observer):
         return out | {key: rows[key].copy() for key in self._TAIL}
 
 
-class VideoObserver(Observer):
-    """Streams frames into ``video.mp4`` at the configured rate of simulated time."""
-
-    def __init__(self, sim: Simulation, path: Any, simulation_config: Any, model: Any = None) -> None:
-        """``model``: the model to draw (default ``sim.model``; the spatial twin of a native-cable model)."""
-        from ..video import VideoRecorder
-
-        c = simulation_config
-        self.render_model = sim.drawable_model if model is None else model
-        self.video = VideoRecorder(self.render_model, path, c.cameras, c.video_width, c.video_height, c.video_fps,
-                                   shadows=c.video_shadows)
-
-    def after_tick(self, sim: Simulation) -> str | None:
-        if self.render_model is not sim.model and sim.data.time + 1e-12 >= self.video.next_time:
-            self.render_model.geom_rgba[:] = sim.model.geom_rgba  # colours the run changed (cut material)
-        self.video.maybe_capture(sim.data)
-        return None
-
-    def close(self, sim: Simulation) -> None:  # noqa: ARG002 - the hook's signature
-        self.video.close()
-
-
 class ProgressObserver(Observer):
     """A tqdm bar in simulated seconds, refreshed every 100 ticks."""
 
@@ -579,7 +560,7 @@ _KERNELS: list[Any] = []
 def _kernels() -> list[Any]:
     """[``_contact_sums``, ``_health_code``] compiled by numba (or loaded from its cache) on first use."""
     if not _KERNELS:
-        from ..model.jit import jit_in_place, sigint_deferred
+        from ..plant.jit import jit_in_place, sigint_deferred
 
         with sigint_deferred():
             jit_in_place(globals(), ("_block_sum", "_pairwise_sum", "_contact_sums", "_health_code"))

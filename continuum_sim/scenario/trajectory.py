@@ -24,6 +24,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..configio import atomic_write_bytes
+
 Array = NDArray[np.float64]
 
 CONTACT_KINDS = ("cutter", "gripper", "arm_arm", "arm_world")  # columns of ``contact_force``
@@ -71,6 +73,7 @@ class Trajectory:
     # The cutter's record (plant.cut_record.CuttingRecord.arrays(): cut_* series, kerf_map, ...);
     # empty for runs saved before the foam cutter.
     cutting: dict[str, np.ndarray] = field(default_factory=dict)
+    cpu_seconds: float | None = None  # process CPU time of the run (time.process_time); None for runs saved before it
 
     _ARRAYS = ("t", "stage", "plan_index", "sample_pos", "sample_rel_pos", "sample_welded", "cells_remaining",
                "spindle_speed", "contact_force", "arm_distance")
@@ -105,8 +108,6 @@ class Trajectory:
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write ``trajectory.npz`` (atomically)."""
-        from ..configio import atomic_write_bytes
-
         atomic_write_bytes(path, self.to_bytes())
 
     @classmethod
@@ -132,6 +133,7 @@ class Trajectory:
             wall_breakdown_s=dict(meta.get("wall_breakdown_s", {})),  # files written before they moved out
             wall_seconds=meta.get("wall_seconds"),
             cutting=_cutting_arrays(data),
+            cpu_seconds=meta.get("cpu_seconds"),
         )
 
 

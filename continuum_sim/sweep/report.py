@@ -110,6 +110,13 @@ def _log_axis(axis: GridAxis) -> bool:
     return axis.log or (bool(np.all(values > 0)) and values.max() / values.min() >= 20.0)
 
 
+def _log_ticks(ax, x: np.ndarray) -> None:
+    """A log x axis ticked at the grid's own values, written plainly (not 3×10⁰ run into 4×10⁰)."""
+    ax.set_xscale("log")
+    ax.set_xticks(x, [f"{v:.3g}" for v in x], fontsize=8)
+    ax.minorticks_off()
+
+
 def _values(spec: SweepSpec, records, metric: str) -> np.ndarray:
     """The metric on the grid (NaN where missing or failed), shape = axis lengths."""
     shape = tuple(len(a.values) for a in spec.axes)
@@ -154,7 +161,7 @@ def write_plots(spec: SweepSpec, records: dict[str, dict[str, Any]], root: Path)
             if np.any(failed):
                 ax.plot(x[failed], np.zeros(int(failed.sum())), "rx", ms=8, label="failed/missing")
             if _log_axis(axis):
-                ax.set_xscale("log")
+                _log_ticks(ax, x)
             ax.set_xlabel(axis.path)
             ax.set_ylabel(metric)
             ax.set_title(f"{evaluation}: {metric} vs {axis.path}", fontsize=10)
@@ -185,7 +192,7 @@ def _overview(plt, spec: SweepSpec, records, out_dir: Path) -> Path | None:
     for ax, (metric, y) in zip(axes.flat, series):
         ax.plot(x, y, "o-", ms=4)
         if _log_axis(axis):
-            ax.set_xscale("log")
+            _log_ticks(ax, x)
         ax.set_ylabel(metric, fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
     for ax in axes.flat[len(series) :]:

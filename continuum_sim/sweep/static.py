@@ -31,7 +31,7 @@ from mujoco import rollout
 
 from .. import kinematics as kin
 from ..configio import to_dict
-from ..control import ArmController
+from ..control.arm import ArmController
 from ..model import names
 from ..model.arm import build_single_arm_model, section_links
 from ..model.cable_elasticity import cable_stiffness
@@ -187,8 +187,7 @@ def _open_loop_ctrl(config: ScenarioConfig, options: ModelOptions, q: np.ndarray
     geom = model_geometry(config.arm, options)
     control = dataclasses.replace(config.control, mode="open")
     # per-cable stiffness (elastic: EA/L; lumped: cable_kp), as the task's controller uses
-    # Once per variant: the Python tick (the compiled one's numbers; loading its kernels costs more).
-    controller = ArmController(geom, control, np.eye(4), tool_length, cable_stiffness(config.arm, options), compiled=False)
+    controller = ArmController(geom, control, np.eye(4), tool_length, cable_stiffness(config.arm, options))
     pose = kin.tool_centre_pose(geom, q, tool_length)
     return controller.update(q, pose, pose[:3, 3], pose[:3, :3], 0.0)
 

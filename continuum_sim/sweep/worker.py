@@ -92,5 +92,14 @@ def evaluate_payload(payload: dict[str, Any]) -> dict[str, Any]:
 
 
 def warm_up() -> None:
-    """Import the heavy modules (MuJoCo, dm_control) once per worker, before the first task."""
+    """Import the heavy modules (MuJoCo, dm_control, numba) once per worker, before the first task.
+
+    They live as long as the worker: ``gc.freeze`` keeps the cyclic collector from rescanning
+    their objects (numba's among them) during every variant's model build (measured: +0.07 s
+    CPU per gravity-sag variant without it).
+    """
+    import gc
+
     from . import static  # noqa: F401
+
+    gc.freeze()

@@ -47,7 +47,7 @@ class Prediction:
 
 
 def _friction_of(config: ScenarioConfig):
-    """The config's cable friction when it acts (μ > 0), else None (model/friction.py)."""
+    """The config's cable friction when it acts (μ > 0), else None (plant/friction.py)."""
     friction = getattr(config.model, "cable_friction", None)
     return friction if friction is not None and friction.mu > 0.0 else None
 
@@ -64,7 +64,7 @@ def _rollout_sampled(plants: list[ReplayModel], controls: list[Array], sample_st
     datas = [mujoco.MjData(models[0]) for _ in range(max(1, min(nthread, len(models))))]
     handle = None
     if friction is not None:
-        from ..model.friction import install_cable_friction
+        from ..plant.friction import install_cable_friction
 
         if len(models) != 1:
             raise ValueError("cable friction: one model per rollout call")
@@ -257,8 +257,9 @@ def write_replay_folder(out: Path, config: ScenarioConfig, rec: Recording, pred:
         arrays["orientation_error_deg"] = ang
     atomic_write_bytes(out / "trajectory.npz", npz_bytes(arrays))  # no entry dates: same replay, same bytes
     e = metrics["position_error_mm"]
+    robot = rec.info.source.split(" (")[0] if rec.info.source else f"{rec.arm} arm"  # an imported robot by its own name
     plot_paths(rec, {label: pred}, out / "plots" / "tool_paths.png",
-               f"{rec.arm} arm replay: position error mean {e['mean']:.3g} / RMS {e['rms']:.3g} / max {e['max']:.3g} mm")
+               f"{robot} replay: position error mean {e['mean']:.3g} / RMS {e['rms']:.3g} / max {e['max']:.3g} mm")
 
 
 def run_replay(config: ScenarioConfig, rec: Recording, out: str | os.PathLike[str]) -> dict[str, Any]:

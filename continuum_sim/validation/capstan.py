@@ -96,7 +96,8 @@ def measure(mu: float, target_deg: float = 90.0, model_rig: tuple[Any, int, int]
     """Load the rig to ~``target_deg`` with friction ``mu`` and measure the anchor/motor ratio."""
     import mujoco
 
-    from ..model import friction as fr
+    from ..model.friction_options import CableFrictionConfig
+    from ..plant.friction import install_cable_friction
 
     model, act, ten = rig() if model_rig is None else model_rig
     target = np.radians(target_deg)
@@ -105,7 +106,7 @@ def measure(mu: float, target_deg: float = 90.0, model_rig: tuple[Any, int, int]
     for _ in range(5):
         data = mujoco.MjData(model)
         data.ctrl[:] = model.actuator_ctrlrange[:, 1]
-        handle = fr.install_cable_friction(model, data, fr.CableFrictionConfig(mu=mu))
+        handle = install_cable_friction(model, data, CableFrictionConfig(mu=mu))
         try:
             hold(model, data, act, 0.0, T, 250, 0)  # monotonic loading: the cable only reels in
             settle(model, data, act, T)
