@@ -110,9 +110,9 @@ def test_mujoco_effect_applies_the_table_torque() -> None:
     jx, jy = (mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"arm/joint_2_{a}") for a in "xy")
     data.qpos[model.jnt_qposadr[jy]] = math.radians(6.0)
     mujoco.mj_forward(model, data)
-    spring = data.qfrc_passive.copy()
-    effect.apply(model, data)
-    added = data.qfrc_passive - spring
+    effect.apply(data)
+    effect.apply(data)  # a second step at the same pose replaces its own share, does not add to it
+    added = data.qfrc_applied.copy()
     # expected from the leaf table directly: three leaves at ψ = 90°, −30° (90° − 120°), −150° → mirrored to −30°
     theta_max, n_theta, n_psi = _grid()
     _, psi, leaf = leaf_table(section_segment(geometry, geometry.sections[0]), theta_max, n_theta, n_psi)

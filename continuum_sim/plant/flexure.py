@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
@@ -111,10 +111,10 @@ def _interp(table: np.ndarray, dtheta: float, dphi: float, sx: float, sy: float,
 
 
 @njit(cache=True)
-def flexure_forces(qpos: np.ndarray, qfrc: np.ndarray, qadr: np.ndarray, dofadr: np.ndarray, axes: np.ndarray,
-                   factor: np.ndarray, scale: np.ndarray, curve: np.ndarray, tables: np.ndarray,
+def flexure_forces(qpos: np.ndarray, qfrc: np.ndarray, last: np.ndarray, qadr: np.ndarray, dofadr: np.ndarray,
+                   axes: np.ndarray, factor: np.ndarray, scale: np.ndarray, curve: np.ndarray, tables: np.ndarray,
                    dtheta: float, dphi: float) -> None:
-    """Add every hinge pair's remainder torque to ``qfrc`` (the passive force vector).
+    """Put every hinge pair's remainder torque into ``qfrc``, replacing the share ``last`` (n_pairs, 2) added before.
 
     Pair p: hinges at qpos ``qadr[p]`` (2,), dofs ``dofadr[p]`` (2,), axes (2, 2) in the disk
     frame, rotation factor c, torque scale, and its section's table ``tables[curve[p]]``.
@@ -127,14 +127,18 @@ def flexure_forces(qpos: np.ndarray, qfrc: np.ndarray, qadr: np.ndarray, dofadr:
         sy = c * (a * axes[p, 0, 1] + b * axes[p, 1, 1])
         _interp(tables[curve[p]], dtheta, dphi, sx, sy, rem)
         for h in range(2):
-            qfrc[dofadr[p, h]] -= scale[p] * (rem[0] * axes[p, h, 0] + rem[1] * axes[p, h, 1])
+            tau = -scale[p] * (rem[0] * axes[p, h, 0] + rem[1] * axes[p, h, 1])
+            qfrc[dofadr[p, h]] += tau - last[p, h]
+            last[p, h] = tau
 
 
 @dataclass
 class FlexureEffect:
-    """The remainder torques of every flexure hinge pair of a compiled model (both arms).
+    """The remainder torques of every flexure hinge pair of a compiled model (both arms), for one MjData.
 
-    A passive hook (``install``): ``apply`` runs inside every step's passive stage.
+    ``apply(data)`` before every ``mj_step`` writes them into ``data.qfrc_applied`` from the
+    step's starting positions (explicit in time, like any applied force), replacing its own
+    share of the step before (``last``) so other users of ``qfrc_applied`` keep theirs.
     """
 
     qadr: np.ndarray
@@ -146,27 +150,22 @@ class FlexureEffect:
     tables: np.ndarray
     dtheta: float
     dphi: float
+    last: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
-    error: BaseException | None = None
-    _model_ref: Any = field(default=None, repr=False)
-    _data_ref: Any = field(default=None, repr=False)
-    table_kind = "flexure"
+    def __post_init__(self) -> None:
+        self.last = np.zeros((len(self.qadr), 2))
 
-    def apply(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:  # noqa: ARG002 - the effect hook's signature
-        """Add the torques to ``data.qfrc_passive`` (call inside the passive stage)."""
-        flexure_forces(data.qpos, data.qfrc_passive, self.qadr, self.dofadr, self.axes, self.factor, self.scale,
-                       self.curve, self.tables, self.dtheta, self.dphi)
+    def apply(self, data: mujoco.MjData) -> None:
+        """Add the torques for ``data``'s positions to ``data.qfrc_applied`` (own share replaced)."""
+        flexure_forces(data.qpos, data.qfrc_applied, self.last, self.qadr, self.dofadr, self.axes, self.factor,
+                       self.scale, self.curve, self.tables, self.dtheta, self.dphi)
 
-    def install(self, model: mujoco.MjModel, data: mujoco.MjData) -> FlexureEffect:
-        """Run in the passive stage of every step of ``data`` (after the hooks already there)."""
-        import weakref
-
-        from ..model.friction import register_passive
-
-        self._model_ref = weakref.ref(model)
-        self._data_ref = weakref.ref(data)
-        register_passive(data, self)
-        return self
+    def torques(self, qpos: np.ndarray, nv: int) -> np.ndarray:
+        """The remainder generalized forces (nv,) at ``qpos`` alone (tests, statics)."""
+        out = np.zeros(nv)
+        flexure_forces(np.asarray(qpos, dtype=float), out, np.zeros_like(self.last), self.qadr, self.dofadr, self.axes,
+                       self.factor, self.scale, self.curve, self.tables, self.dtheta, self.dphi)
+        return out
 
 
 def flexure_effect(model: mujoco.MjModel, arms: tuple[str, ...], geometry: ArmGeometry, model_geometry: ArmGeometry,

@@ -36,6 +36,7 @@ from . import metrics as met
 from .cable_friction import CableFrictionObserver
 from .compile_notice import compile_notice
 from .config import ScenarioConfig
+from .flexure_observer import flexure_observers
 from .simulate import (
     CutterObserver,
     HealthCheck,
@@ -97,7 +98,7 @@ def _run(config: ScenarioConfig, out_dir: Path | None, *, video: bool, stages: t
     sim.cutter = cutter.cutter  # what observers show of the cut (the video's kerf and overlay)
     recorder = Recorder(every, cutter)
     friction = CableFrictionObserver(config.model.cable_friction, recorder.every)  # acts inside mj_step
-    hooks: list[Observer] = [cutter, recorder, friction, *observers, HealthCheck()]
+    hooks: list[Observer] = [cutter, recorder, friction, *flexure_observers(config), *observers, HealthCheck()]
     if progress:  # before the video: its bar closes at the end of the physics, then the video's shows the encoding
         hooks.append(ProgressObserver(end_time))
     if video and out is not None:
@@ -207,10 +208,6 @@ def make_simulation(config: ScenarioConfig, plan: TaskPlan, model: mujoco.MjMode
     from ..plant.drive import MotorDrive  # (here: numba loads only once a run is built)
 
     sim.actuate = MotorDrive(model, handles, geometry, config.model, config.scene.tools)
-    if config.model.flexure_model == "nonlinear":  # the segments' nonlinear moment-rotation (docs/model.md)
-        from ..plant.flexure import flexure_effect
-
-        flexure_effect(model, tuple(handles.arms), config.arm, geometry, config.model.stiffness_scale).install(model, data)
     if config.simulation.tcp_noise_m > 0.0:
         sim.measure = NoisyMeasurement(config.simulation.tcp_noise_m, config.simulation.seed)
     return sim
