@@ -164,12 +164,12 @@ def validation_checks() -> list[Any]:
         rows = []
         leaf = LeafSection(0.006, 0.001, 2.0e9, 0.38)
         ref = "clamped–clamped column, weak axis"
-        slender = Rod(LeafSection(0.006, 0.0002, 2.0e9, 0.38), 0.05, 24, bow=5e-7)
-        pe = euler_clamped_load(slender.section, slender.length)
-        p = column_load(slender, 1.5 * pe / (slender.section.youngs_modulus * slender.section.area) * slender.length)
-        rows.append(row("flexure.limits", ref + " (L/t 250, 24 elements): Euler π²EI/(0.5L)²",
-                        "plateau load at 1.5× critical strain vs Euler", 100 * (p / pe - 1), 2.0, "%", "+.2f"))
-        if not quick:
+        if not quick:  # (the quick run keeps the cantilever; tests/test_flexure_nonlinear.py checks the column)
+            slender = Rod(LeafSection(0.006, 0.0002, 2.0e9, 0.38), 0.05, 24, bow=5e-7)
+            pe = euler_clamped_load(slender.section, slender.length)
+            p = column_load(slender, 1.5 * pe / (slender.section.youngs_modulus * slender.section.area) * slender.length)
+            rows.append(row("flexure.limits", ref + " (L/t 250, 24 elements): Euler π²EI/(0.5L)²",
+                            "plateau load at 1.5× critical strain vs Euler", 100 * (p / pe - 1), 2.0, "%", "+.2f"))
             for n, tol in ((24, 2.0), (16, 3.0)):
                 rod = Rod(leaf, 0.018, n, bow=9e-6)
                 pe = engesser_load(leaf, 0.018)
@@ -202,7 +202,7 @@ def validation_checks() -> list[Any]:
             curve = section_curve(arm, sec)
             phi = math.radians(WORST_PHI_DEG)
             axis = np.array([math.cos(phi), math.sin(phi)])
-            degrees = np.arange(0.0, 11.0, 1.0)  # a continuation from 0: each solve starts from the last
+            degrees = np.arange(0.0, 7.0, 2.0) if quick else np.arange(0.0, 11.0, 1.0)  # a continuation from 0
             exact_curve = section_segment(arm, sec, 24).moment_curve(np.radians(degrees), phi) @ axis
             for deg in ((6.0,) if quick else (2.0, 4.0, 6.0, 8.0, 10.0)):
                 exact = float(np.interp(deg, degrees, exact_curve))
