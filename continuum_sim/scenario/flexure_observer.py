@@ -8,9 +8,14 @@ one ``mj_step`` at a time, so the hook costs one compiled call per step.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from ..model.options import model_geometry
 from .config import ScenarioConfig
 from .simulate import Observer, Simulation
+
+if TYPE_CHECKING:
+    from ..plant.flexure import FlexureEffect
 
 
 class FlexureObserver(Observer):
@@ -18,7 +23,7 @@ class FlexureObserver(Observer):
 
     def __init__(self, config: ScenarioConfig) -> None:
         self.config = config
-        self.effect = None
+        self.effect: FlexureEffect | None = None
 
     def start(self, sim: Simulation) -> None:
         from ..plant.flexure import flexure_effect  # numba loads only once a run is built
@@ -28,7 +33,8 @@ class FlexureObserver(Observer):
                                      cfg.model.stiffness_scale)
 
     def before_physics_step(self, sim: Simulation) -> None:
-        self.effect.apply(sim.data)  # type: ignore[union-attr]  # set in start()
+        assert self.effect is not None  # set in start()
+        self.effect.apply(sim.data)
 
     def close(self, sim: Simulation) -> None:
         if self.effect is not None:
