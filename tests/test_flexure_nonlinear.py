@@ -132,12 +132,42 @@ def test_mujoco_effect_applies_the_table_torque() -> None:
     assert added[model.jnt_dofadr[jy]] > 0.0  # softening: the remainder opposes the linear spring
 
 
+def test_ball_joint_gets_the_same_torque_as_a_hinge_pair() -> None:
+    import mujoco
+
+    from continuum_sim.model.arm import build_single_arm_model
+    from continuum_sim.plant.flexure import flexure_effect
+
+    geometry = ArmGeometry()
+    torques = {}
+    for joint in ("hinge_pair", "ball"):
+        options = ModelOptions(joint=joint, tendons=False, flexure_model="nonlinear")
+        root = build_single_arm_model(geometry, options, gravity=False)
+        model = mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
+        data = mujoco.MjData(model)
+        angle = math.radians(7.3)  # off the grid, 40° off the x axis
+        axis = np.array([math.cos(0.7), math.sin(0.7), 0.0])
+        if joint == "ball":
+            jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "arm/joint_12")
+            data.qpos[model.jnt_qposadr[jid]:model.jnt_qposadr[jid] + 4] = [math.cos(angle / 2), *(math.sin(angle / 2) * axis)]
+            dofs = [model.jnt_dofadr[jid], model.jnt_dofadr[jid] + 1]
+        else:
+            ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"arm/joint_12_{a}") for a in "xy"]
+            data.qpos[[model.jnt_qposadr[j] for j in ids]] = angle * axis[:2]
+            dofs = [model.jnt_dofadr[j] for j in ids]
+        effect = flexure_effect(model, ("arm",), geometry, geometry, 1.0)
+        torques[joint] = effect.torques(data.qpos, model.nv)[dofs]
+    np.testing.assert_allclose(torques["ball"], torques["hinge_pair"], rtol=1e-9)
+    assert np.all(np.abs(torques["ball"]) > 1e-3)
+
+
 def test_flexure_model_option_is_validated() -> None:
     with pytest.raises(ConfigError, match="flexure_model"):
         ModelOptions(flexure_model="cubic")  # type: ignore[arg-type]
-    with pytest.raises(ConfigError, match="flexure_model"):
-        ModelOptions(joint="ball", flexure_model="nonlinear")
     from continuum_sim.scenario.config import ScenarioConfig
+    from continuum_sim.scenario.flexure_observer import flexure_observers
 
-    with pytest.raises(ConfigError, match="model.flexure_model"):
-        ScenarioConfig(arm=ArmGeometry(backbone="rod"), model=ModelOptions(joint="hinge_pair", flexure_model="nonlinear"))
+    config = ScenarioConfig.default()
+    assert config.model.flexure_model == "nonlinear" and len(flexure_observers(config)) == 1
+    rod = ScenarioConfig(arm=ArmGeometry(backbone="rod"), model=config.model)
+    assert flexure_observers(rod) == []  # a rod backbone has no leaves

@@ -29,7 +29,7 @@ class ModelOptions:
     # The segments' moment–rotation (docs/model.md, "Flexures beyond linear"): "linear" = the
     # joint springs alone; "nonlinear" = the springs plus the remainder of the geometrically
     # exact leaf model (compressed-leaf buckling, the joint's kinematics), a per-step plant
-    # effect (plant/flexure.py). Hinge joints and the flexure backbone only.
+    # effect (plant/flexure.py); no effect on a rod backbone (it has no leaves).
     flexure_model: Literal["linear", "nonlinear"] = "linear"
     joint_damping: float = 0.2  # N·m·s/rad per physical joint (hinge + ball friction, *assumed*); scaled like stiffness
     joint_armature: float = 1e-5  # kg·m², numerical regulariser for light disks
@@ -82,8 +82,6 @@ class ModelOptions:
         require_range("stiffness_scale", self.stiffness_scale, 0.0, 1e4)
         if self.flexure_model not in ("linear", "nonlinear"):
             raise ConfigError("flexure_model", f"must be 'linear' or 'nonlinear' (got {self.flexure_model!r})")
-        if self.flexure_model == "nonlinear" and self.joint == "ball":
-            raise ConfigError("flexure_model", "'nonlinear' needs hinge joints (model.joint = 'hinge_pair' or 'hinge_triple')")
         require_range("joint_damping", self.joint_damping, 0.0, 100.0, low_inclusive=True)
         require_range("joint_armature", self.joint_armature, 0.0, 1.0, low_inclusive=True)
         if self.cable_model not in ("elastic", "lumped"):

@@ -12,7 +12,9 @@ along its last slope.
 Bending in two axes: a hinge pair's angles (a, b) are taken as the rotation vector's
 in-plane components s = a·e₁ + b·e₂ (the axes of its two hinges in the disk frame), the
 same small-rotation reading the linear springs ½k(a² + b²) make; the twist a universal
-joint adds (a·b/2, second order) is not a bending load. A model joint standing for
+joint adds (a·b/2, second order) is not a bending load. A ball joint: the (x, y) part of
+its quaternion's rotation vector, the torque on its x and y dofs (its twist spring stays
+MuJoCo's). A model joint standing for
 n_phys/n_model physical segments in series turns each by c·q (c = n_model/n_phys) and
 carries the same moment, so its torque is scale·M(c·q).
 """
@@ -117,14 +119,23 @@ def flexure_forces(qpos: np.ndarray, qfrc: np.ndarray, last: np.ndarray, qadr: n
     """Put every hinge pair's remainder torque into ``qfrc``, replacing the share ``last`` (n_pairs, 2) added before.
 
     Pair p: hinges at qpos ``qadr[p]`` (2,), dofs ``dofadr[p]`` (2,), axes (2, 2) in the disk
-    frame, rotation factor c, torque scale, and its section's table ``tables[curve[p]]``.
+    frame, rotation factor c, torque scale, and its section's table ``tables[curve[p]]``. A
+    ball joint has ``qadr[p] = (quaternion address, −1)``, dofs (x, y) of its three, axes the identity.
     """
     rem = np.zeros(2)
     for p in range(qadr.shape[0]):
-        a, b = qpos[qadr[p, 0]], qpos[qadr[p, 1]]
         c = factor[p]
-        sx = c * (a * axes[p, 0, 0] + b * axes[p, 1, 0])
-        sy = c * (a * axes[p, 0, 1] + b * axes[p, 1, 1])
+        if qadr[p, 1] < 0:  # a ball joint: its quaternion's rotation vector (x, y); dofs = local x, y
+            w, vx, vy, vz = qpos[qadr[p, 0]], qpos[qadr[p, 0] + 1], qpos[qadr[p, 0] + 2], qpos[qadr[p, 0] + 3]
+            norm = math.sqrt(vx * vx + vy * vy + vz * vz)
+            if w < 0.0:
+                w, vx, vy, norm = -w, -vx, -vy, norm
+            k = 2.0 * math.atan2(norm, w) / norm if norm > 1e-12 else 2.0
+            sx, sy = c * k * vx, c * k * vy
+        else:
+            a, b = qpos[qadr[p, 0]], qpos[qadr[p, 1]]
+            sx = c * (a * axes[p, 0, 0] + b * axes[p, 1, 0])
+            sy = c * (a * axes[p, 0, 1] + b * axes[p, 1, 1])
         _interp(tables[curve[p]], dtheta, dphi, sx, sy, rem)
         for h in range(2):
             tau = -scale[p] * (rem[0] * axes[p, h, 0] + rem[1] * axes[p, h, 1])
@@ -186,11 +197,17 @@ def flexure_effect(model: mujoco.MjModel, arms: tuple[str, ...], geometry: ArmGe
             for _ in range(mod.n_segments):
                 index += 1
                 ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{arm}/joint_{index}_{a}") for a in "xy"]
-                if min(ids) < 0:
-                    raise ConfigError("model.flexure_model", "nonlinear needs hinge joints (model.joint = 'hinge_pair' or 'hinge_triple')")
-                qadr.append([int(model.jnt_qposadr[j]) for j in ids])
-                dofadr.append([int(model.jnt_dofadr[j]) for j in ids])
-                axes.append([np.asarray(model.jnt_axis[j][:2], dtype=float) for j in ids])
+                ball = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{arm}/joint_{index}")
+                if min(ids) >= 0:
+                    qadr.append([int(model.jnt_qposadr[j]) for j in ids])
+                    dofadr.append([int(model.jnt_dofadr[j]) for j in ids])
+                    axes.append([np.asarray(model.jnt_axis[j][:2], dtype=float) for j in ids])
+                elif ball >= 0 and model.jnt_type[ball] == mujoco.mjtJoint.mjJNT_BALL:
+                    qadr.append([int(model.jnt_qposadr[ball]), -1])
+                    dofadr.append([int(model.jnt_dofadr[ball]), int(model.jnt_dofadr[ball]) + 1])
+                    axes.append([np.array([1.0, 0.0]), np.array([0.0, 1.0])])
+                else:
+                    raise ConfigError("model.flexure_model", f"no joint {arm}/joint_{index} (hinge pair or ball) in the model")
                 factor.append(mod.n_segments / phys.n_segments)
                 curve.append(si)
     return FlexureEffect(np.array(qadr, dtype=np.int64), np.array(dofadr, dtype=np.int64), np.array(axes, dtype=float),

@@ -81,10 +81,6 @@ class ScenarioConfig:
     control: ControlConfig = field(default_factory=ControlConfig)
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
 
-    def __post_init__(self) -> None:
-        if self.model.flexure_model == "nonlinear" and self.arm.backbone != "flexure":
-            raise ConfigError("model.flexure_model", f"'nonlinear' needs arm.backbone = 'flexure' (got {self.arm.backbone!r})")
-
     @classmethod
     def default(cls) -> ScenarioConfig:
         """The shipped defaults (``continuum_sim/data/scenario.toml``)."""

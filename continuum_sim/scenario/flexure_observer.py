@@ -43,5 +43,6 @@ class FlexureObserver(Observer):
 
 
 def flexure_observers(config: ScenarioConfig) -> list[Observer]:
-    """``[FlexureObserver]`` when the configuration asks for the nonlinear flexures, else ``[]``."""
-    return [FlexureObserver(config)] if config.model.flexure_model == "nonlinear" else []
+    """``[FlexureObserver]`` when the configuration asks for the nonlinear flexures (and the arm has leaves), else ``[]``."""
+    wanted = config.model.flexure_model == "nonlinear" and config.arm.backbone == "flexure"
+    return [FlexureObserver(config)] if wanted else []
