@@ -29,6 +29,8 @@ import numpy as np
 from numba import njit
 
 from ..configio import ConfigError
+from ..model import names
+from ..model.names import scoped
 from ..model.stiffness import segment_stiffness
 from .leaf_rod import leaf_table, section_segment
 
@@ -181,7 +183,7 @@ class FlexureEffect:
 
 def flexure_effect(model: mujoco.MjModel, arms: tuple[str, ...], geometry: ArmGeometry, model_geometry: ArmGeometry,
                    scale: float) -> FlexureEffect:
-    """The effect for every hinge pair ``<arm>/joint_<i>_x``/``_y`` of ``arms``.
+    """The effect for every flexure joint of ``arms`` (hinge pairs ``joint_<i>_x``/``_y`` or ball ``joint_<i>``).
 
     ``geometry`` is the physical arm (the leaf tables), ``model_geometry`` the resampled one
     (joints per section); ``scale`` is ``model.stiffness_scale``.
@@ -196,8 +198,8 @@ def flexure_effect(model: mujoco.MjModel, arms: tuple[str, ...], geometry: ArmGe
         for si, (phys, mod) in enumerate(zip(geometry.sections, model_geometry.sections)):
             for _ in range(mod.n_segments):
                 index += 1
-                ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{arm}/joint_{index}_{a}") for a in "xy"]
-                ball = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{arm}/joint_{index}")
+                ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, scoped(arm, names.joint(index, a))) for a in "xy"]
+                ball = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, scoped(arm, names.joint(index)))
                 if min(ids) >= 0:
                     qadr.append([int(model.jnt_qposadr[j]) for j in ids])
                     dofadr.append([int(model.jnt_dofadr[j]) for j in ids])
@@ -207,7 +209,7 @@ def flexure_effect(model: mujoco.MjModel, arms: tuple[str, ...], geometry: ArmGe
                     dofadr.append([int(model.jnt_dofadr[ball]), int(model.jnt_dofadr[ball]) + 1])
                     axes.append([np.array([1.0, 0.0]), np.array([0.0, 1.0])])
                 else:
-                    raise ConfigError("model.flexure_model", f"no joint {arm}/joint_{index} (hinge pair or ball) in the model")
+                    raise ConfigError("model.flexure_model", f"no joint {scoped(arm, names.joint(index))} (hinge pair or ball) in the model")
                 factor.append(mod.n_segments / phys.n_segments)
                 curve.append(si)
     return FlexureEffect(np.array(qadr, dtype=np.int64), np.array(dofadr, dtype=np.int64), np.array(axes, dtype=float),
