@@ -46,9 +46,24 @@ class SectionGeometry:
     leaf_radius: float = 0.0
     leaf_angles_deg: tuple[float, float, float] = (0.0, 120.0, 240.0)
     leaf_free_length: float = 0.0
+    # Per-section calibration (identified from recordings, docs/sysid.md; the defaults change
+    # nothing): the section's joint springs x stiffness_scale (on top of model.stiffness_scale),
+    # its three cables' stiffness x cable_gain_scale, its holes at cable_hole_radius from the
+    # axis (0: the arm's), its cable pattern turned by cable_angle_offset_deg about the axis,
+    # and extra_pretension N added to control.pretension in its cables (the replay's calibration).
+    stiffness_scale: float = 1.0
+    cable_gain_scale: float = 1.0
+    cable_hole_radius: float = 0.0
+    cable_angle_offset_deg: float = 0.0
+    extra_pretension: float = 0.0
 
     def __post_init__(self) -> None:
         require_positive("length", self.length)
+        require_range("stiffness_scale", self.stiffness_scale, 0.0, 1e4)
+        require_range("cable_gain_scale", self.cable_gain_scale, 0.0, 1e4)
+        require_range("cable_hole_radius", self.cable_hole_radius, 0.0, 1.0, low_inclusive=True)
+        require_range("cable_angle_offset_deg", self.cable_angle_offset_deg, -180.0, 180.0, low_inclusive=True)
+        require_range("extra_pretension", self.extra_pretension, 0.0, 1000.0, low_inclusive=True)
         require_positive("disk_diameter", self.disk_diameter)
         require_positive("hinge_width", self.hinge_width)
         require_positive("hinge_thickness", self.hinge_thickness)
@@ -81,7 +96,12 @@ class SectionGeometry:
 
     @property
     def cable_angles(self) -> np.ndarray:
-        return np.radians(np.asarray(self.cable_angles_deg, dtype=float))
+        """The holes' angles about the axis (rad), calibration offset included."""
+        return np.radians(np.asarray(self.cable_angles_deg, dtype=float) + self.cable_angle_offset_deg)
+
+    def hole_radius(self, arm_radius: float) -> float:
+        """The section's hole radius (m): its own when set, else the arm's."""
+        return self.cable_hole_radius if self.cable_hole_radius > 0.0 else arm_radius
 
     @property
     def leaf_angles(self) -> np.ndarray:
@@ -179,10 +199,17 @@ class ToolGeometry:
 
     grinder_length: float = 0.060
     gripper_length: float = 0.070
+    # Where a recording's measured point (a motion-capture marker) sits relative to the tool
+    # centre point, in the tool frame (m); replay/identify compare the model at that point.
+    marker_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         require_range("grinder_length", self.grinder_length, 0.0, 1.0, low_inclusive=True)
         require_range("gripper_length", self.gripper_length, 0.0, 1.0, low_inclusive=True)
+        if len(self.marker_offset) != 3:
+            raise ConfigError("marker_offset", f"must have 3 entries x, y, z (got {len(self.marker_offset)})")
+        for i, v in enumerate(self.marker_offset):
+            require_range(f"marker_offset[{i}]", v, -1.0, 1.0, low_inclusive=True)
 
     def length(self, tool: str) -> float:
         if tool == "grinder":
@@ -247,6 +274,10 @@ class ArmGeometry:
                 f"(holes must lie inside every disk; got {self.cable_hole_radius:g})",
             )
         for i, section in enumerate(self.sections):
+            if section.cable_hole_radius >= smallest:
+                raise ConfigError(f"sections[{i}].cable_hole_radius",
+                                  f"must be < smallest disk radius {smallest:g} m (got {section.cable_hole_radius:g})")
+        for i, section in enumerate(self.sections):
             if self.disk_thickness >= section.pitch:
                 raise ConfigError(
                     "disk_thickness",
@@ -307,7 +338,7 @@ class ArmGeometry:
     def cable_holes(self) -> np.ndarray:
         """(n_cables, 3) hole positions in a disk frame, section-major, base→tip."""
         angles = np.concatenate([s.cable_angles for s in self.sections])
-        r = self.cable_hole_radius
+        r = np.repeat([s.hole_radius(self.cable_hole_radius) for s in self.sections], 3)
         return np.stack([r * np.cos(angles), r * np.sin(angles), np.zeros_like(angles)], axis=1)
 
     def cable_names(self, arm: str) -> list[str]:

@@ -53,14 +53,15 @@ def _pidfd(pid: int) -> int | None:
         return None
 
 
-def _gone(pid: int) -> bool:
+def pid_alive(pid: int) -> bool:
+    """Whether a process ``pid`` exists (one owned by another user counts: signal 0 is refused, not lost)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
-        return True
+        return False
     except PermissionError:
-        pass
-    return False
+        return True
+    return True
 
 
 def _watch(watched_pid: int, parent_pid: int) -> None:
@@ -76,7 +77,7 @@ def _watch(watched_pid: int, parent_pid: int) -> None:
                     os._exit(1)
     while True:
         time.sleep(POLL_S)
-        if _gone(watched_pid) or os.getppid() != parent_pid:
+        if not pid_alive(watched_pid) or os.getppid() != parent_pid:
             os._exit(1)
 
 

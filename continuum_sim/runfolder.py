@@ -25,13 +25,14 @@ from pathlib import Path
 from typing import Any
 
 from .configio import ConfigError, atomic_write_text, shorten
+from .lifetime import pid_alive
 
 MARKER = "RUNNING"
 STATES = ("running", "complete", "interrupted", "diverged", "failed", "incomplete")
 # What a run writes; a folder holding anything else is not cleared by --overwrite.
 RUN_FILES = {
-    MARKER, "config.toml", "metrics.json", "trajectory.npz", "video.mp4", "video.interrupted.mp4", "video.diverged.mp4",
-    "video.failed.mp4", "plots", "model", "MUJOCO_LOG.TXT", "report.html", "replay.rrd",
+    MARKER, "config.toml", "parameters.json", "metrics.json", "trajectory.npz", "video.mp4", "video.interrupted.mp4",
+    "video.diverged.mp4", "video.failed.mp4", "plots", "model", "MUJOCO_LOG.TXT", "report.html", "replay.rrd",
 }
 
 
@@ -74,16 +75,6 @@ def mark_running(out: Path, command: str = "run") -> None:
     atomic_write_text(out / MARKER, json.dumps(info, indent=1) + "\n")
 
 
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
 def read_state(out: Path) -> str:
     """One of ``STATES`` (or ``unknown`` for a folder no run wrote)."""
     marker = out / MARKER
@@ -92,7 +83,7 @@ def read_state(out: Path) -> str:
             pid = int(json.loads(marker.read_text()).get("pid", -1))
         except (OSError, ValueError, AttributeError):
             return "incomplete"
-        return "running" if pid > 0 and pid != os.getpid() and _pid_alive(pid) else "incomplete"
+        return "running" if pid > 0 and pid != os.getpid() and pid_alive(pid) else "incomplete"
     try:
         metrics = json.loads((out / "metrics.json").read_text())
         status = metrics.get("status")

@@ -20,7 +20,7 @@ from continuum_sim.geometry import ArmGeometry
 from continuum_sim.scenario.config import ScenarioConfig
 
 RECORDING_DIR = Path(__file__).resolve().parents[1] / "validation" / "opencr_ftdcr_v4"
-RECORDING = str(RECORDING_DIR / "ftdcr_v4_val.recording.csv")  # a real recording (docs/sysid.md)
+RECORDING = str(RECORDING_DIR / "recordings" / "val.recording.csv")  # a real recording (docs/sysid.md)
 ROBOT = str(RECORDING_DIR / "ftdcr_v4.toml")
 
 
@@ -373,7 +373,7 @@ def test_internal_error_is_one_line_and_debug_shows_traceback(monkeypatch, capsy
     def boom(args):
         raise RuntimeError("x" * 10_000)
 
-    monkeypatch.setattr(cli, "_cmd_fk", boom)
+    monkeypatch.setattr(cli.parser, "_cmd_fk", boom)
     code, _, err = run_cli(["fk", *["0"] * 6], capsys)
     assert code == cli.EXIT_INTERNAL
     assert_one_line(err, "internal error", "--debug")
@@ -398,7 +398,7 @@ def test_boundary_maps_failures_to_documented_codes(exc, code, fragment, monkeyp
     def raise_it(args):
         raise exc
 
-    monkeypatch.setattr(cli, "_cmd_fk", raise_it)
+    monkeypatch.setattr(cli.parser, "_cmd_fk", raise_it)
     got, _, err = run_cli(["fk", *["0"] * 6], capsys)
     assert got == code
     assert_one_line(err, fragment)
@@ -413,7 +413,7 @@ def test_divergence_maps_to_3(monkeypatch, capsys):
     def diverge(args):
         raise SimulationDiverged("simulation diverged: non-finite state at t = 0.0160 s")
 
-    monkeypatch.setattr(cli, "_cmd_fk", diverge)
+    monkeypatch.setattr(cli.parser, "_cmd_fk", diverge)
     code, _, err = run_cli(["fk", *["0"] * 6], capsys)
     assert code == cli.EXIT_DIVERGED
     assert_one_line(err, "diverged")
@@ -447,7 +447,7 @@ def test_deep_models_get_a_deeper_recursion_limit(monkeypatch, capsys):
     import continuum_sim.cli as cli
 
     seen = {}
-    monkeypatch.setattr(cli, "_cmd_fk", lambda args: seen.setdefault("limit", sys.getrecursionlimit()) and 0)
+    monkeypatch.setattr(cli.parser, "_cmd_fk", lambda args: seen.setdefault("limit", sys.getrecursionlimit()) and 0)
     before = sys.getrecursionlimit()
     assert main(["fk", *["0"] * 6]) == 0
     assert seen["limit"] >= 10_000 and sys.getrecursionlimit() == before

@@ -62,8 +62,10 @@ def test_closed_loop_scenario_meets_the_task(closed_run):
 
 def test_run_folder_holds_everything(closed_run):
     out, metrics = closed_run
-    for name in ("config.toml", "metrics.json", "trajectory.npz", "model/scene.xml", "model/scene_spatial.xml"):
+    for name in ("config.toml", "parameters.json", "metrics.json", "trajectory.npz", "model/scene.xml", "model/scene_spatial.xml"):
         assert (out / name).exists(), name
+    parameters = json.loads((out / "parameters.json").read_text())  # the registry values of a default run: no overrides
+    assert parameters["overrides"] == {} and len(parameters["parameters"]) >= 25
     for name in ("toolpath.png", "section_angles.png", "tip_error.png", "cable_tensions.png"):
         assert (out / "plots" / name).stat().st_size > 10_000, name
     assert ScenarioConfig.from_toml(out / "config.toml") == ScenarioConfig.default()

@@ -67,3 +67,37 @@ def test_a_failing_or_raising_check_fails_the_report(monkeypatch):
 def test_registry_names_are_unique():
     names = [c.name for c in all_checks()]
     assert len(names) == len(set(names)) and len(CHECKS) >= 10
+
+
+def test_quick_report_states_the_full_reports_status(tmp_path):
+    """A quick run's header carries the committed full report's verdict, and its default folder is not the committed one."""
+    from continuum_sim.validation.report import COMMITTED_REPORT, QUICK_OUT, full_report_status, full_status_line
+
+    full = json.loads((COMMITTED_REPORT / "report.json").read_text())
+    failing = sorted({r["check"] for r in full["rows"] if not r["passed"]})
+    status = full_report_status(quick_checks=["cosserat.beam"], quick_failing=[])
+    assert status["rows"] == len(full["rows"]) and status["rows_passed"] == sum(r["passed"] for r in full["rows"])
+    assert status["failing_checks"] == failing and status["not_reproduced"] == failing
+    line = full_status_line(status)
+    assert f"{status['rows_passed']}/{status['rows']} rows pass" in line
+    if failing:
+        assert "reproduces none of them" in line and failing[0] in line
+    # a fake full report with nothing failing: the line says so and nothing more
+    clean = tmp_path / "report.json"
+    clean.write_text(json.dumps({"rows": [{"check": "a.b", "passed": True}], "errors": {}}))
+    assert full_status_line(full_report_status(clean)).endswith("1/1 rows pass.")
+    assert "not available" in full_status_line(full_report_status(tmp_path / "missing.json"))
+    assert QUICK_OUT.startswith("runs/")
+
+
+def test_cli_quick_never_writes_the_committed_report(tmp_path, capsys, monkeypatch):
+    from continuum_sim.validation.report import COMMITTED_REPORT
+
+    assert main(["validate", "--quick", "--only", "cosserat.beam", "--no-plots", "--out", str(COMMITTED_REPORT)]) == 2
+    assert "committed full report" in capsys.readouterr().err
+    monkeypatch.chdir(tmp_path)  # the default folder, relative to where it runs
+    assert main(["validate", "--quick", "--only", "cosserat.beam", "--no-plots"]) == 0
+    text = (tmp_path / "runs" / "validation-quick" / "report.md").read_text()
+    assert "**Full report**" in text.splitlines()[4] or "**Full report**" in text
+    data = json.loads((tmp_path / "runs" / "validation-quick" / "report.json").read_text())
+    assert data["full_report"]["available"] is True

@@ -46,9 +46,10 @@ def cable_stiffness(geometry: ArmGeometry, options: ModelOptions, in_arm: Array 
     Distal cables run through the proximal sections as well, so they are longer and softer.
     """
     n = 3 * geometry.n_sections
+    gain = np.repeat([s.cable_gain_scale for s in geometry.sections], 3)  # per-section calibration
     if options.cable_model == "lumped":
-        return np.full(n, float(options.cable_kp))
-    return rope_axial_stiffness(options) / routed_lengths(geometry, options, in_arm)
+        return gain * np.full(n, float(options.cable_kp))
+    return gain * rope_axial_stiffness(options) / routed_lengths(geometry, options, in_arm)
 
 
 # N·s²/m: the largest k·h² of an arm's stiffest cable verified to run the whole default task
@@ -113,5 +114,7 @@ def cable_velocity_gain(stiffness: float, options: ModelOptions) -> float:
 
 
 def pretension_offsets(geometry: ArmGeometry, options: ModelOptions, pretension: float) -> Array:
-    """(n_cables,) motor set-point offsets (m) that give ``pretension`` at the planned shape: T/k."""
-    return float(pretension) / cable_stiffness(geometry, options)
+    """(n_cables,) motor set-point offsets (m) that give ``pretension`` (plus each section's
+    ``extra_pretension``) at the planned shape: T/k."""
+    extra = np.repeat([s.extra_pretension for s in geometry.sections], 3)
+    return (float(pretension) + extra) / cable_stiffness(geometry, options)

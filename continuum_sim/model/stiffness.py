@@ -129,7 +129,7 @@ def joint_stiffnesses(
     n_model. The twist value is ``inf`` for a universal central joint.
     """
     section = geometry.sections[section_index]
-    factor = scale * n_model * section.pitch / section.length
+    factor = scale * section.stiffness_scale * n_model * section.pitch / section.length
     kx, ky, kz = segment_stiffness(geometry, section)
     return factor * kx, factor * ky, factor * kz
 
@@ -180,7 +180,7 @@ def bend_tension(geometry: ArmGeometry, section_index: int, bend: float | None =
     """
     section = geometry.sections[section_index]
     theta = (section.max_bend if bend is None else bend) / section.n_segments
-    r, half_pitch = geometry.cable_hole_radius, section.pitch / 2.0
+    r, half_pitch = section.hole_radius(geometry.cable_hole_radius), section.pitch / 2.0
     lever = r * math.cos(theta / 2.0) + half_pitch * math.sin(theta / 2.0)
     return scale * segment_bending_stiffness(geometry, section) * theta / lever
 

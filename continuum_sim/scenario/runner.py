@@ -299,11 +299,24 @@ def start_run_dir(out_dir: Path, config: ScenarioConfig, root: Any, model: mujoc
     """Before simulating: the configuration and the model of the run (``run_model_files``)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     config.save_toml(out_dir / "config.toml")
+    write_parameters(out_dir, config)
     for name, content in run_model_files(root, model, render_model).items():
         if isinstance(content, bytes):
             atomic_write_bytes(out_dir / "model" / name, content)
         else:
             atomic_write_text(out_dir / "model" / name, content)
+
+
+def write_parameters(out_dir: Path, config: ScenarioConfig) -> None:
+    """``parameters.json``: every registry parameter's value in this run and those that differ from the shipped defaults.
+
+    Schema: ``{"parameters": [{path, name, value, default, unit, status, source, range, log, overridden}],
+    "overrides": {path: value}}`` (``continuum_sim.params.registry.records``).
+    """
+    from ..params.registry import records
+
+    doc = records(config, ScenarioConfig.default())
+    atomic_write_text(out_dir / "parameters.json", json.dumps(doc, indent=1, ensure_ascii=False))
 
 
 def write_run(out_dir: Path, trajectory: Trajectory, metrics: dict[str, Any], plan: TaskPlan,

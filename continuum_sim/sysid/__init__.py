@@ -6,5 +6,8 @@
 * ``replay``: drives the model with a recording and compares predicted and measured poses;
 * ``excitation``: the documented excitation motion and ``synthesize`` (data from the model);
 * ``identify``: least squares over simulated replays for any numeric config paths;
-* ``ftdcr``: importer of the OpenCR-MuJoCo FTDCR v4 motion-capture recordings.
+* ``calibrate``: tendon angles from single-tendon pulls (``identify --calibrate-angles``);
+* ``opencr``: importer of OpenCR-style motion-capture sessions of any robot of that family;
+* ``robot``: an OpenCR generation JSON as a scenario TOML;
+* ``cli``, ``import_cli``: the subcommands.
 """

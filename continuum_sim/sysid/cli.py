@@ -129,39 +129,57 @@ def cmd_synthesize(args: argparse.Namespace) -> int:
 
 
 def cmd_identify(args: argparse.Namespace) -> int:
+    import sys
+
     from .identify import identify, parse_fit, write_identify_folder
 
     config = _config(args.config)
     rec = _recording(args, config)
     if not args.fit:
         raise ConfigError("--fit", "name at least one parameter path, e.g. --fit model.stiffness_scale")
+    for name, low in (("--workers", 1), ("--stride", 1), ("--max-nfev", 1), ("--starts", 1)):
+        value = getattr(args, name[2:].replace("-", "_"))
+        if value < low:
+            raise ConfigError(name, f"must be >= {low} (got {value})")
+    if not (math.isfinite(args.orientation_weight) and args.orientation_weight >= 0):
+        raise ConfigError("--orientation-weight", f"must be a number >= 0 (got {args.orientation_weight})")
+    calibration = None
+    if args.calibrate_angles is not None:
+        from .calibrate import calibrate_angles
+        from .data import read_recording
+
+        pulls = rec if args.calibrate_angles == "" else read_recording(args.calibrate_angles)
+        config, calibration = calibrate_angles(config, pulls, args.calibrate_angles or args.data)
     params = [parse_fit(spec, config) for spec in args.fit]
     paths = [p.path for p in params]
     if len(set(paths)) != len(paths):
         raise ConfigError("--fit", "a path is given twice")
-    if args.workers < 1:
-        raise ConfigError("--workers", f"must be >= 1 (got {args.workers})")
-    if args.stride < 1:
-        raise ConfigError("--stride", f"must be >= 1 (got {args.stride})")
-    if args.max_nfev < 1:
-        raise ConfigError("--max-nfev", f"must be >= 1 (got {args.max_nfev})")
-    if not (math.isfinite(args.orientation_weight) and args.orientation_weight >= 0):
-        raise ConfigError("--orientation-weight", f"must be a number >= 0 (got {args.orientation_weight})")
     out = _out_dir(args.out)
     result = identify(config, rec, params, nthread=args.workers, orientation_weight=args.orientation_weight,
-                      max_nfev=args.max_nfev, progress=not args.quiet, stride=args.stride)
-    write_identify_folder(out, result, rec, args.config)
+                      max_nfev=args.max_nfev, progress=not args.quiet, stride=args.stride, starts=args.starts,
+                      seed=args.seed)
+    if calibration is not None:
+        result.report["calibration"] = calibration
+        result.report["calibrated_paths"] = [f"arm.sections.{k}.{f}" for k in range(config.arm.n_sections)
+                                             for f in ("cable_angles_deg", "cable_angle_offset_deg")]
     r = result.report
+    r["strict"] = bool(args.strict)
+    write_identify_folder(out, result, rec, args.config)
     print(json.dumps({
         "parameters": r["parameters"],
-        "std_error": {p: d["std_error"] for p, d in r["details"].items()},
+        "ci95": {p: d["ci95"] for p, d in r["details"].items()},
         "rmse_before_mm": round(r["rmse_before_mm"], 4),
         "rmse_after_mm": round(r["rmse_after_mm"], 4),
         "unidentifiable": r["unidentifiable"],
         "replays": r["replays"],
         "cpu_s": round(r["cpu_s"], 1),
     }, indent=2))
+    for w in r["warnings"]:
+        print(f"identify: warning: {w}", file=sys.stderr)
     print(f"identify folder: {out}/ (identified.toml: use with --config; report.json; plots/)")
+    if args.strict and r["warnings"]:
+        print(f"identify: --strict: {len(r['warnings'])} warning(s), exit 1", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -200,5 +218,15 @@ def add_commands(sub: Any) -> None:
     idp.add_argument("--orientation-weight", type=float, default=1.0, help="mm of residual per degree of orientation error")
     idp.add_argument("--stride", type=int, default=1, help="fit on every N-th row (before/after figures use all rows)")
     idp.add_argument("--quiet", action="store_true", help="no progress bar")
+    idp.add_argument("--starts", type=int, default=1, help="multi-start: the initial values + N-1 Sobol points (default 1)")
+    idp.add_argument("--seed", type=int, default=0, help="seed of the multi-start's scrambled Sobol points")
+    idp.add_argument("--strict", action="store_true",
+                     help="exit 1 when the fit is not trustworthy (a bound, no movement, the evaluation limit, unidentifiable)")
+    idp.add_argument("--calibrate-angles", nargs="?", const="", metavar="PULLS.csv",
+                     help="first measure the tendon angles from single-tendon pull rows (of DATA, or of PULLS.csv)")
     _add_recording_options(idp)
     idp.set_defaults(func=cmd_identify)
+
+    from .import_cli import add_import_commands
+
+    add_import_commands(sub)

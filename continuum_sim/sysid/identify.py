@@ -9,10 +9,12 @@ orientations, the orientation errors in degrees times ``orientation_weight`` (mm
 
 The optimiser (scipy ``least_squares``, trust-region reflective, bounded) works on
 scaled variables x = (value − initial)/scale; its finite-difference Jacobian columns are
-replayed together in one batched ``mujoco.rollout`` call on ``nthread`` threads.
-Uncertainty: cov = s²(JᵀJ)⁻¹ with s² = 2·cost/(m − n); a parameter is reported as not
-identifiable when JᵀJ is rank-deficient in it (relative singular value < 1e-8), when its
-95 % interval is wider than its value, or when it is correlated with another above 0.999.
+replayed together (one batched ``mujoco.rollout`` call on ``nthread`` threads, or one
+process per replay with cable friction). Optionally a seeded Sobol multi-start. The
+report (``_report``, ``fit_warnings``) says what the data cannot tell: 95 % intervals
+from ``mujoco.sysid.calculate_intervals``, singular values and correlations of J,
+parameters the data cannot move, and fits that started or ended on a bound, changed
+nothing or stopped on the evaluation limit (``--strict`` turns these into exit 1).
 """
 
 from __future__ import annotations
@@ -38,7 +40,9 @@ from ..configio import (
 )
 from ..scenario.config import ScenarioConfig
 from .data import Recording
-from .replay import Prediction, plot_paths, position_errors, replay_metrics, simulate
+from .replay import Prediction, marker_point, plot_paths, position_errors, replay_metrics, simulate
+
+MARKER = "arm.tools.marker_offset."
 
 Array = NDArray[np.float64]
 
@@ -134,42 +138,52 @@ class FitResult:
 
 def identify(config: ScenarioConfig, rec: Recording, params: list[FitParameter], nthread: int = 1,
              orientation_weight: float = 1.0, max_nfev: int = 30, progress: bool = False,
-             diff_step: float = 1e-3, stride: int = 1) -> FitResult:
+             diff_step: float = 1e-3, stride: int = 1, starts: int = 1, seed: int = 0,
+             move_tol: float = 1e-6) -> FitResult:
     """Fit ``params`` to ``rec``; returns the values, the report dict and the fitted config.
 
     ``stride`` > 1 fits on every stride-th row only (a cheaper search on long quasi-static
     recordings, like upstream's search stride); before/after figures use every row.
+    ``starts`` > 1: a multi-start, the initial values plus ``starts``−1 scrambled Sobol
+    points inside the bounds (``scipy.stats.qmc``, ``seed``); the best end point is kept.
+    Marker-offset parameters (``arm.tools.marker_offset.*``) move only the compared point,
+    so replays are shared between values that differ only there.
     """
     from scipy.optimize import least_squares
+    from scipy.stats import qmc
 
     start = time.process_time()
     full = rec
     if stride > 1:
         rec = rec.subset(np.arange(0, len(rec.time), stride))
     x_scale = np.array([p.scale for p in params])
-    x0 = np.zeros(len(params))
     v0 = np.array([p.initial for p in params])
     lo = (np.array([p.low for p in params]) - v0) / x_scale
     hi = (np.array([p.high for p in params]) - v0) / x_scale
-    cache: dict[bytes, Array] = {}
+    marker = np.array([p.path.startswith(MARKER) for p in params])
+    cache: dict[bytes, Prediction] = {}
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=max_nfev * (len(params) + 1), desc="identify (replays)", unit="replay", leave=False)
+        bar = tqdm(total=starts * max_nfev * (len(params) + 1), desc="identify (replays)", unit="replay", leave=False)
     count = [0]
 
     def run(xs: list[Array]) -> list[Array]:
-        todo = [x for x in xs if x.tobytes() not in cache]
+        keys = [np.where(marker, 0.0, x).tobytes() for x in xs]
+        todo = {k: x for k, x in zip(keys, xs) if k not in cache}
         if todo:
-            cfgs = [configure(config, params, v0 + x * x_scale) for x in todo]
-            preds = simulate(cfgs, rec, nthread=nthread)
-            for x, p in zip(todo, preds):
-                cache[x.tobytes()] = residuals(p, rec, orientation_weight)
+            cfgs = [configure(config, params, v0 + x * x_scale) for x in todo.values()]
+            for k, p in zip(todo, simulate(cfgs, rec, nthread=nthread, marker=False)):
+                cache[k] = p
             count[0] += len(todo)
             if bar is not None:
                 bar.update(len(todo))
-        return [cache[x.tobytes()] for x in xs]
+        out = []
+        for k, x in zip(keys, xs):
+            offset = configure(config, params, v0 + x * x_scale).arm.tools.marker_offset
+            out.append(residuals(marker_point(cache[k], offset), rec, orientation_weight))
+        return out
 
     def fun(x: Array) -> Array:
         return run([np.asarray(x, dtype=float)])[0]
@@ -186,11 +200,21 @@ def identify(config: ScenarioConfig, rec: Recording, params: list[FitParameter],
         cols = run(steps)
         return np.stack([(c - f0) / (s[i] - x[i]) for i, (c, s) in enumerate(zip(cols, steps))], axis=1)
 
+    x0 = np.zeros(len(params))
+    points = [x0]
+    if starts > 1:
+        sobol = qmc.Sobol(len(params), scramble=True, seed=seed).random(starts - 1)
+        points += [lo + u * (hi - lo) for u in sobol]
     r0 = fun(x0)
-    sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=max_nfev,
-                        xtol=1e-8, ftol=1e-10, gtol=1e-10)
+    runs = []
+    for p0 in points:
+        sol = least_squares(fun, p0, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=max_nfev,
+                            xtol=1e-8, ftol=1e-10, gtol=1e-10)
+        runs.append(sol)
     if bar is not None:
         bar.close()
+    best = min(runs, key=lambda r: float(r.cost))
+    sol = best
     values = v0 + sol.x * x_scale
     fitted = configure(config, params, values)
     J = jac(sol.x) / x_scale[None, :]  # d residual / d value, on the fitted rows
@@ -202,13 +226,55 @@ def identify(config: ScenarioConfig, rec: Recording, params: list[FitParameter],
     report["rmse_after_mm"] = report["replay_after"]["position_error_mm"]["rms"]
     report["stride"] = stride
     report["samples"] = int(full.measured.sum())
-    report.update({"nfev": int(sol.nfev), "replays": count[0], "status": sol.message, "cpu_s": time.process_time() - start,
-                   "orientation_weight_mm_per_deg": orientation_weight})
+    report.update({"nfev": int(sol.nfev), "replays": count[0], "status": sol.message, "optimizer_status": int(sol.status),
+                   "cpu_s": time.process_time() - start, "orientation_weight_mm_per_deg": orientation_weight})
+    if starts > 1:
+        report["multi_start"] = {"starts": starts, "seed": seed, "method": "initial values + scrambled Sobol (scipy.stats.qmc)",
+                                 "runs": [{"start": (v0 + p * x_scale).tolist(), "end": (v0 + r.x * x_scale).tolist(),
+                                           "cost": float(r.cost), "nfev": int(r.nfev), "status": int(r.status)}
+                                          for p, r in zip(points, runs)]}
+    report["warnings"] = fit_warnings(report, params, v0, values, sol.status, max_nfev, move_tol)
     return FitResult(params, values, report, fitted, before, after)
+
+
+def fit_warnings(report: dict[str, Any], params: list[FitParameter], v0: Array, values: Array, status: int,
+                 max_nfev: int, move_tol: float) -> list[str]:
+    """What makes a fit not to be trusted as it stands: bounds, no movement, the evaluation limit."""
+    out = []
+    for p, d in zip(params, report["details"].values()):
+        if p.initial in (p.low, p.high):
+            out.append(f"{p.path} started on its bound ({p.initial:.6g} in [{p.low:.6g}, {p.high:.6g}]): "
+                       "a start inside the bounds (or --starts N) tests the fit properly")
+        if d["at_bound"]:
+            out.append(f"{p.path} ended at its bound ({d['value']:.6g} in [{p.low:.6g}, {p.high:.6g}]): widen the bounds or fix it")
+        if not d["identifiable"]:
+            out.append(f"{p.path} is not identifiable: {d['why_not']}")
+    moved = np.abs(values - v0) / np.array([p.high - p.low for p in params])
+    before, after = report["fitted_rows_rmse_mm"]["before"], report["fitted_rows_rmse_mm"]["after"]
+    if np.all(moved < move_tol) or abs(before - after) <= 1e-9 * max(before, 1e-12):
+        out.append(f"the fit changed nothing (largest move {float(moved.max()):.2g} of a bound width, "
+                   f"RMSE {before:.6g} -> {after:.6g} mm)")
+    if status == 0:
+        out.append(f"the optimiser stopped on its evaluation limit (--max-nfev {max_nfev}) before converging")
+    return out
 
 
 def _report(params: list[FitParameter], v0: Array, values: Array, r0: Array, r1: Array, J: Array,
             rec: Recording) -> dict[str, Any]:
+    """Per-parameter uncertainty and identifiability from the Jacobian at the optimum.
+
+    95 % half-widths: ``mujoco.sysid.calculate_intervals`` (s² = RSS/(m − n), (JᵀJ)⁻¹ by
+    its eigen-decomposition, Student t). Not identifiable: a direction of JᵀJ with
+    relative singular value < 1e-8 that the parameter takes part in, a step of a tenth of
+    its bound width moving the residuals by < 1e-3 mm RMS (the data cannot move it), a
+    95 % interval wider than its value, or a correlation above 0.999 with another.
+    """
+    import importlib
+
+    # imported by name: mujoco/sysid ships a py.typed marker, and mypy following it would
+    # take the whole (stub-less) mujoco package for typed and reject its C attributes
+    mj_sysid = importlib.import_module("mujoco.sysid")
+
     m, n = J.shape
     dof = max(1, m - n)
     s2 = float(r1 @ r1) / dof
@@ -217,32 +283,36 @@ def _report(params: list[FitParameter], v0: Array, values: Array, r0: Array, r1:
     Jn = J / scale
     _, sv, vt = np.linalg.svd(Jn, full_matrices=False)
     rel = sv / sv[0] if sv.size and sv[0] > 0 else np.zeros_like(sv)
-    weak_dirs = vt[rel < 1e-8]
     weak = rel < 1e-8
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = np.where(weak, 0.0, 1.0 / sv**2)  # pseudo-inverse on the determined subspace
-        cov_n = (vt.T * inv) @ vt
-        cov = cov_n / np.outer(scale, scale) * s2
-    std = np.sqrt(np.abs(np.diag(cov)))
-    if weak.any():  # a parameter in a null direction has no bound on its error
-        std[np.max(np.abs(vt[weak]), axis=0) > 0.1] = np.inf
-    with np.errstate(divide="ignore", invalid="ignore"):
+    weak_dirs = vt[weak]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        # on column-normalised J (parameters in units of their column norm: JᵀJ well
+        # conditioned whatever the parameters' units), then back to the parameters' units
+        cov_n, half_n = mj_sysid.calculate_intervals([r1], Jn)
+        cov = cov_n / np.outer(scale, scale)
+        half = np.asarray(half_n, dtype=float) / scale
+        std = np.sqrt(np.abs(np.diag(cov)))
         corr = cov / np.outer(std, std)
+    width = np.array([p.high - p.low for p in params])
+    effect = np.linalg.norm(J, axis=0) * 0.1 * width / math.sqrt(max(1, m))  # RMS residual change, mm
     per: dict[str, Any] = {}
     for i, p in enumerate(params):
         reasons = []
-        if weak_dirs.size and np.max(np.abs(weak_dirs[:, i])) > 0.1:
+        if effect[i] < 1e-3:
+            reasons.append(f"the data cannot move it (a tenth of its bound width changes the residuals by {effect[i]:.2g} mm RMS)")
+        elif weak_dirs.size and np.max(np.abs(weak_dirs[:, i])) > 0.1:
             reasons.append("the data do not change with it (rank-deficient Jacobian)")
-        if not np.isfinite(std[i]) or 1.96 * std[i] > abs(values[i]):
+        if not np.isfinite(half[i]) or half[i] > abs(values[i]):
             reasons.append("its 95 % interval is wider than its value")
         others = [params[j].path for j in range(n) if j != i and np.isfinite(corr[i, j]) and abs(corr[i, j]) > 0.999]
         if others:
             reasons.append(f"correlated above 0.999 with {', '.join(others)}")
-        at_bound = bool(np.isclose(values[i], p.low, rtol=1e-6) or np.isclose(values[i], p.high, rtol=1e-6))
+        tol = 1e-6 * (p.high - p.low)
+        at_bound = bool(values[i] <= p.low + tol or values[i] >= p.high - tol)
         per[p.path] = {
             "initial": float(v0[i]), "value": float(values[i]), "std_error": float(std[i]),
-            "ci95": [float(values[i] - 1.96 * std[i]), float(values[i] + 1.96 * std[i])],
-            "bounds": [p.low, p.high], "at_bound": at_bound,
+            "ci95": [float(values[i] - half[i]), float(values[i] + half[i])],
+            "bounds": [p.low, p.high], "at_bound": at_bound, "sensitivity_mm": float(effect[i]),
             "identifiable": not reasons, "why_not": "; ".join(reasons),
         }
     npos = 3 * int(rec.measured.sum())
@@ -260,6 +330,8 @@ def _report(params: list[FitParameter], v0: Array, values: Array, r0: Array, r1:
         "metric": "pointwise Euclidean position RMSE" + (" after removing the mean offset" if rec.info.align == "offset" else ""),
         "details": per,
         "correlation": {p.path: [float(c) for c in corr[i]] for i, p in enumerate(params)},
+        "singular_values": [float(v) for v in sv], "singular_values_relative": [float(v) for v in rel],
+        "uncertainty": "mujoco.sysid.calculate_intervals (95 %, s^2 = RSS/(m - n))",
         "residual_sigma": math.sqrt(s2),
         "unidentifiable": [p for p, d in per.items() if not d["identifiable"]],
     }
@@ -275,8 +347,8 @@ def identified_overrides(result: FitResult, base: dict[str, Any] | None) -> dict
 
     out: dict[str, Any] = copy.deepcopy(base) if base else {}
     full = to_dict(result.config)
-    for p in result.params:
-        parts = p.path.split(".")
+    for path in [p.path for p in result.params] + list(result.report.get("calibrated_paths", [])):
+        parts = path.split(".")
         node, src = out, full
         for i, part in enumerate(parts):
             nxt = src[int(part)] if isinstance(src, list) else src[part]

@@ -107,16 +107,56 @@ def _same_structure(models: list[mujoco.MjModel]) -> bool:
     return len(keys) == 1
 
 
+def marker_point(pred: Prediction, offset) -> Prediction:
+    """The prediction at the measured point: tool centre + R(q)·offset (``arm.tools.marker_offset``)."""
+    off = np.asarray(offset, dtype=float)
+    if not np.any(off):
+        return pred
+    w, v = pred.quaternion[:, :1], pred.quaternion[:, 1:]
+    t = 2.0 * np.cross(v, np.broadcast_to(off, v.shape))
+    rotated = off + w * t + np.cross(v, t)  # R(q)·off for unit q = (w, v)
+    return Prediction(pred.position + rotated, pred.quaternion, pred.tension)
+
+
+def _simulate_one(args: tuple[ScenarioConfig, Recording]) -> Prediction:
+    config, rec = args
+    return simulate([config], rec, 1, marker=False)[0]
+
+
+_POOL: dict[int, Any] = {}
+
+
+def _process_pool(workers: int):
+    """A pool of ``workers`` processes kept for the session (forked: no re-import, warm kernels)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    if workers not in _POOL:
+        _POOL[workers] = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
+    return _POOL[workers]
+
+
 def simulate(configs: list[ScenarioConfig], rec: Recording, nthread: int = 1,
-             plants: list[ReplayModel] | None = None) -> list[Prediction]:
-    """Replay ``rec`` through the model of every config; one prediction per config."""
+             plants: list[ReplayModel] | None = None, marker: bool = True) -> list[Prediction]:
+    """Replay ``rec`` through the model of every config; one prediction per config.
+
+    ``marker``: predictions at the configs' measured point (``arm.tools.marker_offset``);
+    False gives the tool centre. Variants with cable friction (its stick/slip state lives
+    per MuJoCo data) run one per process on ``nthread`` processes.
+    """
+    if marker:
+        raw = simulate(configs, rec, nthread, plants, marker=False)
+        return [marker_point(p, c.arm.tools.marker_offset) for p, c in zip(raw, configs)]
     info = rec.info
+    frictions = [_friction_of(c) for c in configs]
+    if len(configs) > 1 and nthread > 1 and plants is None and any(f is not None for f in frictions):
+        pool = _process_pool(min(nthread, len(configs)))
+        return list(pool.map(_simulate_one, [(c, rec) for c in configs]))
     if plants is None:
         plants = [build_replay_model(c, rec.arm, info.tool, info.gravity) for c in configs]
-    frictions = [_friction_of(c) for c in configs]
     if len(configs) > 1 and (any(f is not None for f in frictions) or not _same_structure([p.model for p in plants])):
         # Friction keeps its stick/slip state per MuJoCo data: one rollout per variant.
-        return [simulate([c], rec, 1, [p])[0] for c, p in zip(configs, plants)]
+        return [simulate([c], rec, 1, [p], marker=False)[0] for c, p in zip(configs, plants)]
     friction = frictions[0]
     dt = plants[0].model.opt.timestep
     settle = max(1, round(info.settle_s / dt))

@@ -362,6 +362,8 @@ class Report:
     errors: dict[str, str] = field(default_factory=dict)
     seconds: dict[str, float] = field(default_factory=dict)  # CPU seconds per check
     commands: dict[str, str] = field(default_factory=dict)
+    # The committed full report's status (``full_report_status``), stated in a quick report's header.
+    full_status: dict | None = None
 
     @property
     def passed(self) -> bool:
@@ -372,7 +374,10 @@ class Report:
             f"# Validation report ({'quick' if self.quick else 'full'})\n\n"
             f"{sum(r.passed for r in self.rows)}/{len(self.rows)} rows pass"
             + (f"; {len(self.errors)} checks raised" if self.errors else "")
-            + ".\n\n| check | reference | quantity | tolerance | measured | result | reproduce |\n|---|---|---|---|---|---|---|\n"
+            + (" in the quick subset" if self.quick else "")
+            + ".\n\n"
+            + (full_status_line(self.full_status) + "\n\n" if self.quick else "")
+            + "| check | reference | quantity | tolerance | measured | result | reproduce |\n|---|---|---|---|---|---|---|\n"
         )
         body = "".join(
             f"| {r.check} | {r.reference} | {r.quantity} | {r.tolerance} | {r.measured} "
@@ -393,7 +398,66 @@ class Report:
             "errors": self.errors,
             "cpu_seconds": self.seconds,
             "commands": self.commands,
+            **({"full_report": self.full_status} if self.quick else {}),
         }
+
+
+# The committed full report (``continuum-sim validate --out validation/report``), next to the package.
+COMMITTED_REPORT = Path(__file__).resolve().parents[2] / "validation" / "report"
+QUICK_OUT = "runs/validation-quick"  # default folders: the committed report is written only with an explicit --out
+FULL_OUT = "runs/validation"
+
+
+def family(check: str) -> str:
+    """A check's family: its name up to the first dot (``tendon.section0`` → ``tendon``)."""
+    return check.split(".")[0]
+
+
+def full_report_status(path: Path = COMMITTED_REPORT / "report.json", quick_checks: list[str] | None = None,
+                       quick_failing: list[str] | None = None) -> dict:
+    """What the committed full report says: rows passing, failing checks; with a quick run's checks, what it leaves out.
+
+    ``not_reproduced``: the full report's failing checks that fail nowhere in the quick run
+    (not run there, or their quick subset passes).
+    """
+    import os
+
+    shown = os.path.relpath(path, COMMITTED_REPORT.parents[1]) if Path(path).is_absolute() else str(path)
+    try:
+        data = json.loads(Path(path).read_text())
+        rows = data["rows"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return {"path": shown, "available": False}
+    failing = sorted({r["check"] for r in rows if not r.get("passed")} | set(data.get("errors") or {}))
+    families = sorted({family(c) for c in failing})
+    covered = {family(c) for c in quick_checks or []}
+    return {
+        "path": shown,
+        "available": True,
+        "rows": len(rows),
+        "rows_passed": sum(1 for r in rows if r.get("passed")),
+        "failing_checks": failing,
+        "failing_families": families,
+        "failing_families_not_in_quick": [f for f in families if f not in covered],
+        "not_reproduced": [c for c in failing if c not in set(quick_failing or [])],
+    }
+
+
+def full_status_line(status: dict | None) -> str:
+    """The quick report's statement of the full report's status."""
+    if not status or not status.get("available"):
+        where = (status or {}).get("path", "validation/report/report.json")
+        return f"**Full report: not available** ({where}); run `continuum-sim validate` for the full status."
+    failing = status["failing_checks"]
+    line = f"**Full report** ({status['path']}): {status['rows_passed']}/{status['rows']} rows pass"
+    if not failing:
+        return line + "."
+    line += f"; failing: {', '.join(failing)}"
+    missed = status.get("not_reproduced") or []
+    if missed:
+        which = "none of them" if len(missed) == len(failing) else f"not {', '.join(missed)}"
+        line += f". This quick run reproduces {which}: its verdict is not the full report's"
+    return line + "."
 
 
 def run_checks(quick: bool, only: list[str] | None = None, progress: Callable[[str], None] | None = None) -> Report:
@@ -413,6 +477,9 @@ def run_checks(quick: bool, only: list[str] | None = None, progress: Callable[[s
         report.seconds[check.name] = time.process_time() - start
         if progress:
             progress(f"{check.name}: {time.process_time() - start:.1f} s CPU")
+    if quick:
+        report.full_status = full_report_status(quick_checks=list(report.commands),
+                                                quick_failing=sorted({r.check for r in report.rows if not r.passed} | set(report.errors)))
     return report
 
 
@@ -485,7 +552,8 @@ def add_validate_parser(sub) -> None:
     """Register ``continuum-sim validate`` on the CLI's subparsers."""
     parser = sub.add_parser("validate", help="run every reference check; write a report (Markdown, JSON, plots)")
     parser.add_argument("--quick", action="store_true", help="the fast subset the test suite runs (under a minute)")
-    parser.add_argument("--out", default="validation/report", help="report folder (default: validation/report)")
+    parser.add_argument("--out", help=f"report folder (default: {QUICK_OUT} with --quick, else {FULL_OUT}; the committed "
+                        "full report is written only with an explicit --out validation/report)")
     parser.add_argument("--only", nargs="+", metavar="CHECK", help="run only these checks (names as in the report)")
     parser.add_argument("--no-plots", action="store_true", help="tables only")
     parser.add_argument("--list", action="store_true", help="list the checks and exit")
@@ -509,9 +577,13 @@ def cmd_validate(args) -> int:
         raise ConfigError("--only", f"unknown check(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
     from ..configio import check_output_dir
 
-    check_output_dir(args.out, create=False)  # a bad --out is refused before minutes of checks
+    text = args.out if args.out is not None else (QUICK_OUT if args.quick else FULL_OUT)
+    check_output_dir(text, create=False)  # a bad --out is refused before minutes of checks
+    out = Path(text)
+    if (args.quick or args.only) and out.resolve() == COMMITTED_REPORT:
+        raise ConfigError("--out", f"{args.out} holds the committed full report; a partial run (--quick, --only) writes elsewhere")
     report = run_checks(args.quick, args.only, progress=lambda msg: print(msg, file=sys.stderr))
-    paths = write_report(report, Path(args.out), plots=not args.no_plots)
+    paths = write_report(report, out, plots=not args.no_plots)
     print(report.markdown(), end="")
     print(f"wrote {', '.join(str(p) for p in paths)}", file=sys.stderr)
     return 0 if report.passed else 1
