@@ -171,3 +171,27 @@ def test_flexure_model_option_is_validated() -> None:
     assert config.model.flexure_model == "nonlinear" and len(flexure_observers(config)) == 1
     rod = ScenarioConfig(arm=ArmGeometry(backbone="rod"), model=config.model)
     assert flexure_observers(rod) == []  # a rod backbone has no leaves
+
+
+def test_section_stiffness_scale_scales_the_remainder_like_the_springs() -> None:
+    import dataclasses
+
+    import mujoco
+
+    from continuum_sim.model.arm import build_single_arm_model
+    from continuum_sim.plant.flexure import flexure_effect
+
+    out = {}
+    for factor in (1.0, 2.0):
+        base = ArmGeometry()
+        geometry = dataclasses.replace(base, sections=(dataclasses.replace(base.sections[0], stiffness_scale=factor), *base.sections[1:]))
+        options = ModelOptions(joint="hinge_pair", tendons=False, flexure_model="nonlinear")
+        root = build_single_arm_model(geometry, options, gravity=False)
+        model = mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
+        jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "arm/joint_3_y")
+        qpos = model.qpos0.copy()
+        qpos[model.jnt_qposadr[jid]] = math.radians(5.0)
+        tau = flexure_effect(model, ("arm",), geometry, geometry, 1.0).torques(qpos, model.nv)[model.jnt_dofadr[jid]]
+        out[factor] = (tau, model.jnt_stiffness[jid])
+    assert out[2.0][0] == pytest.approx(2.0 * out[1.0][0], rel=1e-12)
+    assert out[2.0][1] == pytest.approx(2.0 * out[1.0][1], rel=1e-12)

@@ -186,13 +186,14 @@ def flexure_effect(model: mujoco.MjModel, arms: tuple[str, ...], geometry: ArmGe
     """The effect for every flexure joint of ``arms`` (hinge pairs ``joint_<i>_x``/``_y`` or ball ``joint_<i>``).
 
     ``geometry`` is the physical arm (the leaf tables), ``model_geometry`` the resampled one
-    (joints per section); ``scale`` is ``model.stiffness_scale``.
+    (joints per section); ``scale`` is ``model.stiffness_scale`` (each section's own
+    ``stiffness_scale`` multiplies it, as it does the springs).
     """
     import mujoco
 
     curves = [section_curve(geometry, s) for s in geometry.sections]
     tables = np.stack([c.remainder for c in curves])
-    qadr, dofadr, axes, factor, curve = [], [], [], [], []
+    qadr, dofadr, axes, factor, curve, scales = [], [], [], [], [], []
     for arm in arms:
         index = 0
         for si, (phys, mod) in enumerate(zip(geometry.sections, model_geometry.sections)):
@@ -212,6 +213,7 @@ def flexure_effect(model: mujoco.MjModel, arms: tuple[str, ...], geometry: ArmGe
                     raise ConfigError("model.flexure_model", f"no joint {scoped(arm, names.joint(index))} (hinge pair or ball) in the model")
                 factor.append(mod.n_segments / phys.n_segments)
                 curve.append(si)
+                scales.append(scale * phys.stiffness_scale)  # as the joint springs (model.stiffness.joint_stiffnesses)
     return FlexureEffect(np.array(qadr, dtype=np.int64), np.array(dofadr, dtype=np.int64), np.array(axes, dtype=float),
-                         np.array(factor, dtype=float), np.full(len(factor), float(scale)), np.array(curve, dtype=np.int64),
+                         np.array(factor, dtype=float), np.array(scales, dtype=float), np.array(curve, dtype=np.int64),
                          tables, float(curves[0].theta[1]), float(curves[0].phi[1]))
