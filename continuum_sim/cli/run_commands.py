@@ -159,7 +159,7 @@ def _cmd_build_model(args: argparse.Namespace) -> int:
         from ..configio import atomic_write_text
         from ..scenario.config import default_scenario_toml
 
-        defaults = Path(__file__).resolve().parent / "data" / "scenario.toml"
+        defaults = Path(__file__).resolve().parent.parent / "data" / "scenario.toml"  # continuum_sim/data (this module is in cli/)
         text = default_scenario_toml()
         if not defaults.exists() or defaults.read_text() != text:
             atomic_write_text(defaults, text)
