@@ -121,6 +121,7 @@ class SampleRemovalEnv(gym.Env[dict[str, Any], NDArray[np.float32]]):
         import dataclasses
 
         from .scenario.cable_friction import CableFrictionObserver
+        from .scenario.flexure_observer import flexure_observers
         from .scenario.runner import make_simulation
         from .scenario.simulate import CutterObserver, HealthCheck, TickLoop
 
@@ -138,7 +139,8 @@ class SampleRemovalEnv(gym.Env[dict[str, Any], NDArray[np.float32]]):
         self.sim.render_model = self.render_model
         self.cutter = CutterObserver(self.sim)
         friction = CableFrictionObserver(cfg.model.cable_friction, 1)  # the same physics hooks as run_scenario
-        self.loop = TickLoop(self.sim, [self.cutter, friction, HealthCheck()])  # run's tick loop, one tick at a time
+        physics = [self.cutter, friction, *flexure_observers(cfg), HealthCheck()]  # the same physics hooks as run_scenario
+        self.loop = TickLoop(self.sim, physics)  # run's tick loop, one tick at a time
         self.n_ticks = int(np.ceil(self.end_time / self.sim.control_period))
         self._cut_fraction = 0.0
         self._cut_errors: list[float] = []

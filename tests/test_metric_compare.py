@@ -33,7 +33,10 @@ def test_the_stored_tolerances_cover_the_drift_seen_on_another_machine():
     """The drift that made the README's test fail on another machine (issue 23) is inside the tolerance."""
     reference = json.loads((DATA / "reference_metrics.json").read_text())
     stored = json.loads((DATA / "reference_tolerance.json").read_text())
-    seen = dict(reference, cutting_tip_error_mm=dict(reference["cutting_tip_error_mm"], mean=0.06050932))
+    # the drift seen then: 0.06050932 mm against 0.06050770 mm stored (linear flexures); the same drift
+    # applied to today's reference (its default changed on purpose: nonlinear flexures, issue 24)
+    drift = 0.06050932 - 0.06050770
+    seen = dict(reference, cutting_tip_error_mm=dict(reference["cutting_tip_error_mm"], mean=reference["cutting_tip_error_mm"]["mean"] + drift))
     assert mismatches(seen, reference, stored["atol"]) == []
     # ... and a tolerance is a small fraction of what it bounds (the test still tells a change from drift).
     assert stored["atol"]["cutting_tip_error_mm.mean"] < 0.01 * reference["cutting_tip_error_mm"]["mean"]

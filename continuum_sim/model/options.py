@@ -26,8 +26,11 @@ class ModelOptions:
     joint: Literal["ball", "hinge_pair", "hinge_triple"] = "ball"
     segments_per_section: int = 0
     stiffness_scale: float = 1.0  # multiplies every flexure stiffness (the design sweep knob)
-    # Per-section factors (base -> tip) on top of stiffness_scale, one per arm section; empty: every section 1.
-    # The design optimiser's knob (docs/optimize.md); limits.check_model_geometry checks the count.
+    # The segments' moment–rotation (docs/model.md, "Flexures beyond linear"): "linear" = the
+    # joint springs alone; "nonlinear" = the springs plus the remainder of the geometrically
+    # exact leaf model (compressed-leaf buckling, the joint's kinematics), a per-step plant
+    # effect (plant/flexure.py); no effect on a rod backbone (it has no leaves).
+    flexure_model: Literal["linear", "nonlinear"] = "linear"
     joint_damping: float = 0.2  # N·m·s/rad per physical joint (hinge + ball friction, *assumed*); scaled like stiffness
     joint_armature: float = 1e-5  # kg·m², numerical regulariser for light disks
     # --- Transmission (docs/plant.md): rope, motors. ---
@@ -81,6 +84,8 @@ class ModelOptions:
             raise ConfigError("joint", f"must be 'ball', 'hinge_pair' or 'hinge_triple' (got {self.joint!r})")
         require_int("segments_per_section", self.segments_per_section, 0, 200, hint=", 0 = physical count")
         require_range("stiffness_scale", self.stiffness_scale, 0.0, 1e4)
+        if self.flexure_model not in ("linear", "nonlinear"):
+            raise ConfigError("flexure_model", f"must be 'linear' or 'nonlinear' (got {self.flexure_model!r})")
         require_range("joint_damping", self.joint_damping, 0.0, 100.0, low_inclusive=True)
         require_range("joint_armature", self.joint_armature, 0.0, 1.0, low_inclusive=True)
         if self.cable_model not in ("elastic", "lumped"):

@@ -37,7 +37,7 @@ def _scenario_model_options() -> ModelOptions:
     constraint Jacobians: the solver's islands here are one arm (60+ dofs, a dense block
     anyway), and the sparse path measured 1.5-2.5× slower in the constraint phase.
     """
-    return ModelOptions(joint="hinge_pair", timestep=0.004, jacobian="dense")
+    return ModelOptions(joint="hinge_pair", timestep=0.004, jacobian="dense", flexure_model="nonlinear")
 
 
 @dataclass(frozen=True)

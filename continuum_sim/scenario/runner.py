@@ -36,6 +36,7 @@ from . import metrics as met
 from .cable_friction import CableFrictionObserver
 from .compile_notice import compile_notice
 from .config import ScenarioConfig
+from .flexure_observer import flexure_observers
 from .simulate import (
     CutterObserver,
     HealthCheck,
@@ -97,7 +98,7 @@ def _run(config: ScenarioConfig, out_dir: Path | None, *, video: bool, stages: t
     sim.cutter = cutter.cutter  # what observers show of the cut (the video's kerf and overlay)
     recorder = Recorder(every, cutter)
     friction = CableFrictionObserver(config.model.cable_friction, recorder.every)  # acts inside mj_step
-    hooks: list[Observer] = [cutter, recorder, friction, *observers, HealthCheck()]
+    hooks: list[Observer] = [cutter, recorder, friction, *flexure_observers(config), *observers, HealthCheck()]
     if progress:  # before the video: its bar closes at the end of the physics, then the video's shows the encoding
         hooks.append(ProgressObserver(end_time))
     if video and out is not None:

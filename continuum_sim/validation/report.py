@@ -25,7 +25,8 @@ import numpy as np
 
 from ..configio import atomic_write_text
 
-EXTERNAL_MODULES = ("continuum_sim.validation.fe_segment", "continuum_sim.validation.capstan")
+EXTERNAL_MODULES = ("continuum_sim.validation.fe_segment", "continuum_sim.validation.capstan",
+                    "continuum_sim.validation.flexure_nonlinear")
 
 
 @dataclass(frozen=True)
