@@ -495,3 +495,21 @@ def test_steps_per_run_limit_names_the_timestep():
     slow = dataclasses.replace(config, model=dataclasses.replace(config.model, timestep=1e-6))
     with pytest.raises(ConfigError, match=r"model\.timestep.*MuJoCo steps"):
         check_run_length(slow, 1.01 * MAX_SIM_STEPS * 1e-6)
+
+
+@pytest.mark.parametrize("signal_exc, code, fragment", [(KeyboardInterrupt(), 130, "interrupted"), ("terminated", 143, "terminated")])
+def test_signal_inside_a_compiled_function_keeps_its_exit_code(signal_exc, code, fragment, monkeypatch, capsys):
+    """Ctrl-C/SIGTERM landing while a numba function runs surfaces as SystemError("... returned a result with an
+    exception set") caused by the real exception (seen: SIGTERM during the planner's plan_sample gave exit 70)."""
+    import continuum_sim.cli as cli
+    from continuum_sim.cli.errors import Terminated
+
+    cause = Terminated() if signal_exc == "terminated" else signal_exc
+
+    def compiled_call(args):
+        raise SystemError("CPUDispatcher(<function plan_sample>) returned a result with an exception set") from cause
+
+    monkeypatch.setattr(cli.parser, "_cmd_fk", compiled_call)
+    got, _, err = run_cli(["fk", *["0"] * 6], capsys)
+    assert got == code
+    assert_one_line(err, fragment)

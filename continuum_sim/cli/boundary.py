@@ -66,6 +66,18 @@ def _check_environment(args: argparse.Namespace) -> None:
         disable_gl()
 
 
+def _signal_cause(exc: BaseException) -> BaseException | None:
+    """The Ctrl-C or SIGTERM behind ``exc`` (its cause or context chain), if any."""
+    seen: set[int] = set()
+    link: BaseException | None = exc
+    while link is not None and id(link) not in seen:
+        seen.add(id(link))
+        if isinstance(link, KeyboardInterrupt | Terminated):
+            return link
+        link = link.__cause__ or link.__context__
+    return None
+
+
 def _is_divergence(exc: BaseException) -> bool:
     return any(cls.__name__ == "SimulationDiverged" for cls in type(exc).__mro__)
 
@@ -182,6 +194,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RecursionError:
         return fail(EXIT_USAGE, "error: input nested too deeply (recursion limit reached)")
     except Exception as exc:  # noqa: BLE001 - the boundary: one line, never a traceback unless --debug
+        # A signal handler's exception raised while a compiled (numba) function runs comes back as
+        # SystemError("... returned a result with an exception set") with the real one as its cause.
+        cause = _signal_cause(exc)
+        if isinstance(cause, KeyboardInterrupt):
+            return fail(EXIT_INTERRUPTED, "interrupted (Ctrl-C)")
+        if isinstance(cause, Terminated):
+            return fail(EXIT_TERMINATED, "terminated (SIGTERM)")
         if _is_divergence(exc):
             return fail(EXIT_DIVERGED, f"error: {exc}")
         return fail(EXIT_INTERNAL, f"internal error: {type(exc).__name__}: {clip_line(str(exc), 250)} (rerun with --debug for the traceback)")
