@@ -42,8 +42,9 @@ from typing import Any
 
 from ..configio import ConfigError, parse_toml_text, read_config_text, require_int, to_dict
 from ..params.registry import parameter
-from ..scenario.config import ScenarioConfig, merged
+from ..scenario.config import ScenarioConfig
 from ..sweep.evaluations import Evaluation, parse_evaluation
+from ..sweep.spec import check_keys, spec_base
 
 METHODS = ("morris", "sobol")
 # The task outcome and the metrics the issue names (metrics.json, flattened with dots).
@@ -174,29 +175,8 @@ def _factor(path: Any, ranges: dict[str, Any], where: str) -> Factor:
 def parse_spec(data: dict[str, Any], spec_dir: str | os.PathLike[str] | None = None, source_text: str = "") -> SensitivitySpec:
     """Validate a spec dict (as read from TOML) into a ``SensitivitySpec``; ``ConfigError`` if bad."""
     allowed = ("base", "method", "parameters", "metrics", "ranges", "config", "morris", "sobol", "evaluation")
-    for key in data:
-        if key not in allowed:
-            raise ConfigError(key, f"unknown key; allowed keys are {', '.join(allowed)}")
-    base_path = data.get("base")
-    if base_path is None:
-        base = ScenarioConfig.default()
-    else:
-        if not isinstance(base_path, str) or not base_path:
-            raise ConfigError("base", f"must be a path to a scenario TOML file (got {base_path!r})")
-        resolved = Path(base_path)
-        if not resolved.is_absolute() and spec_dir is not None:
-            resolved = Path(spec_dir) / resolved
-        if not resolved.is_file():
-            raise ConfigError("base", f"scenario file {str(resolved)!r} not found")
-        base = ScenarioConfig.from_toml(resolved)
-        base_path = str(resolved)
-    settings = data.get("config", {})
-    if not isinstance(settings, dict):
-        raise ConfigError("config", f"must be a table of scenario settings (got {type(settings).__name__})")
-    try:
-        base = merged(base, settings)
-    except ConfigError as exc:
-        raise exc.under("config") from None
+    check_keys(data, allowed)
+    base, base_path = spec_base(data, spec_dir, with_settings=True)
 
     method = data.get("method", "morris")
     if method not in METHODS:

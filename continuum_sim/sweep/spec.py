@@ -35,7 +35,7 @@ from typing import Any, get_type_hints
 import numpy as np
 
 from ..configio import ConfigError, from_dict, get_path, parse_toml_text, read_config_text, replace_path, to_dict
-from ..scenario.config import ScenarioConfig
+from ..scenario.config import ScenarioConfig, merged
 from .evaluations import Evaluation, parse_evaluation
 
 Number = int | float
@@ -214,15 +214,17 @@ def _lookup(base: ScenarioConfig, path: str) -> Any:
     raise ConfigError(f"grid.{path}", "unknown parameter path")
 
 
-def parse_spec(
-    data: dict[str, Any], spec_dir: str | os.PathLike[str] | None = None, source_text: str = "", progress: bool = False
-) -> SweepSpec:
-    """Validate a spec dict (as read from TOML) into a ``SweepSpec``; ``ConfigError`` if bad."""
-    allowed = ("base", "metrics", "grid", "evaluation")
+def check_keys(data: dict[str, Any], allowed: tuple[str, ...]) -> None:
+    """A study spec's top-level keys: each one of ``allowed`` (sweep, sensitivity and optimize specs)."""
     for key in data:
         if key not in allowed:
             raise ConfigError(key, f"unknown key; allowed keys are {', '.join(allowed)}")
 
+
+def spec_base(data: dict[str, Any], spec_dir: str | os.PathLike[str] | None,
+              with_settings: bool = False) -> tuple[ScenarioConfig, str | None]:
+    """A study spec's base scenario: ``base`` (a scenario TOML, relative to the spec's folder) or the shipped
+    defaults; with ``with_settings``, the spec's ``[config]`` table merged over it. Returns (config, resolved path)."""
     base_path = data.get("base")
     if base_path is None:
         base = ScenarioConfig.default()
@@ -236,6 +238,24 @@ def parse_spec(
             raise ConfigError("base", f"scenario file {str(resolved)!r} not found")
         base = ScenarioConfig.from_toml(resolved)
         base_path = str(resolved)
+    if with_settings:
+        settings = data.get("config", {})
+        if not isinstance(settings, dict):
+            raise ConfigError("config", f"must be a table of scenario settings (got {type(settings).__name__})")
+        try:
+            base = merged(base, settings)
+        except ConfigError as exc:
+            raise exc.under("config") from None
+    return base, base_path
+
+
+def parse_spec(
+    data: dict[str, Any], spec_dir: str | os.PathLike[str] | None = None, source_text: str = "", progress: bool = False
+) -> SweepSpec:
+    """Validate a spec dict (as read from TOML) into a ``SweepSpec``; ``ConfigError`` if bad."""
+    allowed = ("base", "metrics", "grid", "evaluation")
+    check_keys(data, allowed)
+    base, base_path = spec_base(data, spec_dir)
 
     grid = data.get("grid")
     if grid is None:
