@@ -23,55 +23,10 @@ import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 
 from ..configio import require_int, require_positive, require_range
+from ..plant.leaf_rod import LeafSection  # the leaf cross-section (area, second moments, St Venant J): one definition
 
 if TYPE_CHECKING:
     from ..geometry import ArmGeometry, SectionGeometry
-
-
-@dataclass(frozen=True)
-class LeafSection:
-    """A rectangular leaf: ``width`` tangential, ``thickness`` radial, material E and ν."""
-
-    width: float
-    thickness: float
-    youngs_modulus: float
-    poisson_ratio: float
-
-    def __post_init__(self) -> None:
-        require_positive("width", self.width)
-        require_positive("thickness", self.thickness)
-        require_positive("youngs_modulus", self.youngs_modulus)
-        require_range(
-            "poisson_ratio", self.poisson_ratio, -1.0, 0.5, high_inclusive=False
-        )
-
-    @property
-    def shear_modulus(self) -> float:
-        return self.youngs_modulus / (2.0 * (1.0 + self.poisson_ratio))
-
-    @property
-    def area(self) -> float:
-        return self.width * self.thickness
-
-    @property
-    def i_radial_axis(self) -> float:
-        """Second moment about the radial axis (bending that deflects the leaf tangentially)."""
-        return self.thickness * self.width**3 / 12.0
-
-    @property
-    def i_tangential_axis(self) -> float:
-        """Second moment about the tangential axis (bending that deflects the leaf radially)."""
-        return self.width * self.thickness**3 / 12.0
-
-    @property
-    def torsion_constant(self) -> float:
-        return rectangle_torsion_constant(self.width, self.thickness)
-
-    @property
-    def shear_coefficient(self) -> float:
-        """Cowper's shear coefficient of a rectangle, 10(1+ν)/(12+11ν)."""
-        nu = self.poisson_ratio
-        return 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu)
 
 
 def rectangle_torsion_constant(a: float, b: float, terms: int = 50) -> float:
