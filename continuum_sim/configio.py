@@ -220,9 +220,8 @@ def from_dict(cls: type[T], data: dict[str, Any], prefix: str = "") -> T:
         raise exc.under(prefix) from None
 
 
-def replace_path(config: T, path: str, value: Any) -> T:
-    """A copy of ``config`` with the field at dotted ``path`` (``sections.0.length``) set."""
-    data = to_dict(config)
+def set_path(data: Any, path: str, value: Any) -> None:
+    """Set the value at dotted ``path`` (``sections.0.length``) inside a config's dict form, in place."""
     node: Any = data
     parts = path.split(".")
     for i, part in enumerate(parts):
@@ -242,6 +241,12 @@ def replace_path(config: T, path: str, value: Any) -> T:
             node[key] = value
         else:
             node = node[key]
+
+
+def replace_path(config: T, path: str, value: Any) -> T:
+    """A copy of ``config`` with the field at dotted ``path`` (``sections.0.length``) set."""
+    data = to_dict(config)
+    set_path(data, path, value)
     return from_dict(type(config), data)
 
 

@@ -18,7 +18,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..configio import ConfigError, from_dict, to_dict
+from ..configio import ConfigError, from_dict, set_path, to_dict
 from ..sweep.spec import SweepSpec, Variant, variant_id
 from .spec import OptimizeSpec, Variable
 
@@ -73,21 +73,11 @@ def evaluation_variant(spec: OptimizeSpec, design: Params, sample: Params, index
     return Variant(index, params, variant_id(params, spec.evaluation))
 
 
-def _set(data: Any, path: str, value: Any) -> None:
-    *parents, last = path.split(".")
-    for part in parents:
-        data = data[int(part)] if isinstance(data, list) else data[part]
-    if isinstance(data, list):
-        data[int(last)] = value
-    else:
-        data[last] = value
-
-
 def config_dict(spec: OptimizeSpec, params: Params) -> dict[str, Any]:
     """The base configuration (as a dict) with ``params`` set."""
     data = copy.deepcopy(to_dict(spec.base))
     for path, value in params:
-        _set(data, path, value)
+        set_path(data, path, value)
     return data
 
 

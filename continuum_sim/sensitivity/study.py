@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from ..configio import ConfigError, to_dict
+from ..configio import ConfigError, set_path, to_dict
 from ..sweep import backends
 from ..sweep.runner import preflight
 from ..sweep.spec import SweepSpec, Variant, variant_id
@@ -66,16 +66,6 @@ def study_sweep(spec: SensitivitySpec) -> tuple[StudySweep, list[str]]:
     return sweep, row_ids
 
 
-def _set(data: Any, path: str, value: Any) -> None:
-    *parents, last = path.split(".")
-    for part in parents:
-        data = data[int(part)] if isinstance(data, list) else data[part]
-    if isinstance(data, list):
-        data[int(last)] = value
-    else:
-        data[last] = value
-
-
 def check_samples(sweep: StudySweep, limit: int | None = None) -> None:
     """Every sample's configuration must validate and suit the evaluation: before any work, naming the first that does not."""
     import copy
@@ -88,7 +78,7 @@ def check_samples(sweep: StudySweep, limit: int | None = None) -> None:
         try:
             data = copy.deepcopy(base)  # all of a sample's values set in one rebuild (apply_params rebuilds per value)
             for path, value in variant.params:
-                _set(data, path, value)
+                set_path(data, path, value)
             config = from_dict(type(sweep.base), data)
             if sweep.evaluation.static:
                 check_model_geometry(config)
