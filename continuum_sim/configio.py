@@ -113,6 +113,62 @@ def require_int(field: str, value: object, low: int, high: int | None = None, hi
         raise ConfigError(field, f"must satisfy {bound}{hint} (got {value})")
 
 
+# ------------------------------------------------------------ removed and renamed keys
+# Config paths that existed once and are gone: old dotted path -> (the path that replaces it, or None,
+# why, in a few words). Every unknown-key error (a scenario TOML, a study spec's [config] table, grid
+# path, design variable or registry path) looks here first, so a file written for an older version
+# fails with one line naming what to write instead. ``<k>`` in a replacement is a section index;
+# an old path given with an index (``model.section_stiffness_scale.1``) fills it in.
+MIGRATIONS: dict[str, tuple[str | None, str]] = {
+    "model.section_stiffness_scale": (
+        "arm.sections.<k>.stiffness_scale",
+        "one stiffness factor per section; the model-wide list multiplied the same springs a second time",
+    ),
+    "scene.kerf_cell_length": (
+        "scene.foam.voxel_size",
+        "the kerf is cut out of the foam's voxels; there are no pre-built kerf cells any more",
+    ),
+    "scene.tools.cutter_shell": (
+        None,
+        "the cutter is no contact geom (it meets the foam's voxels), so it has no detection shell",
+    ),
+    "scene.foam.native": (
+        None,
+        "the voxel work always runs in the compiled kernels; the numpy path is gone",
+    ),
+}
+
+
+def _dotted(path: str) -> str:
+    """``arm.sections[0].x`` -> ``arm.sections.0.x`` (the form the table and the study specs use)."""
+    return path.replace("[", ".").replace("]", "").strip(".")
+
+
+def migration_note(path: str) -> str | None:
+    """One line for a removed or renamed config ``path`` (or a path below one): what replaces it and why; else None."""
+    dotted = _dotted(path)
+    for old, (new, why) in MIGRATIONS.items():
+        if dotted != old and not dotted.startswith(old + "."):
+            continue
+        if new is None:
+            return f"removed, nothing replaces it ({why})"
+        rest = dotted[len(old) + 1:]
+        if "<k>" in new and rest.isdigit():
+            new = new.replace("<k>", rest)
+        return f"removed; use {new} instead ({why})"
+    return None
+
+
+def unknown_path_error(where: str, message: str, path: str = "") -> ConfigError:
+    """The error for an unknown config key at ``where``: ``message``, or the migration note when the path was removed or renamed.
+
+    ``path``: the whole dotted path asked for, when ``where`` is only the part of it that failed.
+    """
+    full = path or where
+    note = migration_note(full)
+    return ConfigError(full, note) if note is not None else ConfigError(where, message)
+
+
 # ------------------------------------------------------------------ dict <-> dataclass
 def to_dict(config: Any) -> Any:
     """A dataclass tree as nested dicts/lists of plain scalars (TOML-ready)."""
@@ -202,7 +258,7 @@ def from_dict(cls: type[T], data: dict[str, Any], prefix: str = "") -> T:
     for key in data:
         if key not in names:
             where = f"{prefix}.{key}" if prefix else key
-            raise ConfigError(where, f"unknown key; allowed keys are {', '.join(names)}")
+            raise unknown_path_error(where, f"unknown key; allowed keys are {', '.join(names)}")
     kwargs = {}
     for name in names:
         if name in data:
@@ -233,7 +289,7 @@ def set_path(data: Any, path: str, value: Any) -> None:
             key: Any = int(part)
         elif isinstance(node, dict):
             if part not in node:
-                raise ConfigError(where, f"unknown key; allowed keys are {', '.join(node)}")
+                raise unknown_path_error(where, f"unknown key; allowed keys are {', '.join(node)}", path)
             key = part
         else:
             raise ConfigError(where, "cannot index into a scalar value")
@@ -260,7 +316,7 @@ def get_path(config: Any, path: str) -> Any:
         elif isinstance(node, dict) and part in node:
             node = node[part]
         else:
-            raise ConfigError(where, "unknown field path")
+            raise unknown_path_error(where, "unknown field path", path)
     return node
 
 

@@ -1,4 +1,4 @@
-"""Outer-loop gains derived from the plant (issue 12; docs/plant.md, "Outer-loop gains from the plant").
+"""Outer-loop gains derived from the plant (docs/plant.md, "Outer-loop gains from the plant").
 
 The closed loop (``control.ArmController``) integrates the tool-pose error, mapped to
 bending coordinates w (u, v per section) through the PCC Jacobian, into a correction of

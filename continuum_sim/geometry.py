@@ -252,6 +252,11 @@ class ArmGeometry:
     # paper's prototype photo shows a "2-DoF universal joint" (Fig. 13d) in its "2-DoF
     # segments"; its text says "ball joint". The scenario's hinge_pair model matches it.
     central_joint: Literal["ball", "universal"] = "universal"
+    # The nonlinear leaf model's stress-free bow, as a fraction of the leaf's free length
+    # (plant/leaf_rod.py): a numerical seed that lets a compressed leaf leave the straight
+    # branch of its buckling problem (a perfectly straight rod has no direction to buckle in);
+    # small enough not to change the leaf's stiffness. Not a measured imperfection.
+    leaf_bow_fraction: float = 5e-4
 
     def __post_init__(self) -> None:
         if not isinstance(self.sections, tuple) or not 1 <= len(self.sections) <= 10:
@@ -264,6 +269,7 @@ class ArmGeometry:
         if self.central_joint not in ("ball", "universal"):
             raise ConfigError("central_joint", f"must be 'ball' or 'universal' (got {self.central_joint!r})")
         require_range("disk_thickness", self.disk_thickness, 0.0, 0.1)
+        require_range("leaf_bow_fraction", self.leaf_bow_fraction, 0.0, 0.1, low_inclusive=True)
         require_range("spool_radius", self.spool_radius, 0.0, 1.0)
         smallest = min(s.disk_diameter for s in self.sections) / 2.0
         require_range("cable_hole_radius", self.cable_hole_radius, 0.0, 1.0)

@@ -32,7 +32,8 @@ STATES = ("running", "complete", "interrupted", "diverged", "failed", "incomplet
 # What a run writes; a folder holding anything else is not cleared by --overwrite.
 RUN_FILES = {
     MARKER, "config.toml", "parameters.json", "metrics.json", "trajectory.npz", "video.mp4", "video.interrupted.mp4",
-    "video.diverged.mp4", "video.failed.mp4", "plots", "model", "MUJOCO_LOG.TXT", "report.html", "replay.rrd",
+    "video.diverged.mp4", "video.failed.mp4", "plots", "model", "MUJOCO_LOG.TXT", "report.html", "replay.rrd", "poster.png",
+    "provenance.json",
 }
 
 

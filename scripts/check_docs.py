@@ -3,6 +3,7 @@
     python scripts/check_docs.py            # the cheap checks (CI, .ci/run: < 60 s on 2 cores)
     python scripts/check_docs.py --all      # also the slow ones (marked check-slow / check-block-slow)
     python scripts/check_docs.py --list     # what would run
+    python scripts/check_docs.py --fix      # rewrite the numbers and blocks that no longer match
     python scripts/check_docs.py count-tests tests/test_plant.py   # a helper the markers use: "13 tests"
 
 A number in README.md or docs/*.md is tied to the command that gives it by an HTML comment
@@ -18,6 +19,13 @@ A number in README.md or docs/*.md is tied to the command that gives it by an HT
   spec. Markers naming the same command run it once.
 * a block (a table): ``<!-- check-block: python scripts/sweep_table.py SPEC -->`` on its own
   line; the lines after it up to the first blank line must equal the command's stdout.
+
+* a number from a published result (an output of a stage of ``dvc.yaml``, docs/architecture.md):
+  ``0.10 <!-- from: docs/results/default_runs.json closed.cutting_tip_error_mm.mean:.2f -> 0.10 -->``
+  reads the dotted key of that JSON file (no command runs; the results pipeline keeps the file current).
+
+``--fix`` rewrites what does not match with what the commands and files give (a block's lines, an
+inline value in its marker and in the text before it): run it after ``python scripts/results.py repro``.
 
 ``check-slow`` / ``check-block-slow`` mark commands too slow for every CI run (minutes); they
 run with ``--all``. In commands, ``python`` means this interpreter and ``continuum-sim`` the
@@ -41,6 +49,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ("README.md", "docs/*.md")
 INLINE = re.compile(r"<!--\s*check(?P<slow>-slow)?:\s*(?P<cmd>.+?)\s*->\s*(?P<value>.+?)\s*-->")
+FROM = re.compile(r"<!--\s*from:\s*(?P<file>\S+)\s+(?P<key>\S+?)\s*->\s*(?P<value>.+?)\s*-->")
 BLOCK = re.compile(r"^\s*<!--\s*check-block(?P<slow>-slow)?:\s*(?P<cmd>.+?)\s*-->\s*$")
 TIMEOUT_S = 300
 
@@ -75,6 +84,8 @@ def find_checks(root: Path = ROOT) -> list[Check]:
                     continue
                 for m in INLINE.finditer(line):
                     checks.append(Check(rel, i + 1, m["cmd"], m["value"], bool(m["slow"]), False, line[: m.start()]))
+                for m in FROM.finditer(line):
+                    checks.append(Check(rel, i + 1, f"cat {m['file']} | {m['key']}", m["value"], False, False, line[: m.start()]))
     return checks
 
 
@@ -115,26 +126,71 @@ def _json_value(stdout: str, key: str, spec: str) -> str:
 
 def run(check: Check, root: Path = ROOT) -> str | None:
     """None when the check holds, else what is wrong (the command runs in ``root``)."""
+    got = produce(check, root)
+    if isinstance(got, Problem):
+        return str(got)
     if not check.block and check.expected not in check.text_before:
         return f"the marker's value {check.expected!r} is not in the text before it"
+    if got != check.expected.strip():
+        return f"the docs say\n{check.expected}\nthe command gives\n{got}"
+    return None
+
+
+class Problem(str):
+    """Why a check's command gave no value."""
+
+
+def produce(check: Check, root: Path = ROOT) -> str | Problem:
+    """What the check's command (or file) gives now."""
     command, _, extract = check.command.partition(" | ")
     done = _execute(command.strip(), root)
     if isinstance(done, str):
-        return done
+        return Problem(done)
     if done.returncode != 0:
-        return f"exit {done.returncode}: {done.stderr.strip().splitlines()[-1:] or done.stdout.strip()[-200:]}"
+        return Problem(f"exit {done.returncode}: {done.stderr.strip().splitlines()[-1:] or done.stdout.strip()[-200:]}")
     out = done.stdout.strip()
     if extract:
         key, _, spec = extract.strip().partition(":")
         try:
-            got = _json_value(out, key, spec)
+            return _json_value(out, key, spec)
         except (ValueError, KeyError, TypeError) as exc:
-            return f"{extract.strip()}: {type(exc).__name__}: {exc}"
-    else:
-        got = out if check.block else (out.splitlines() or [""])[-1].strip()
-    if got != check.expected.strip():
-        return f"the docs say\n{check.expected}\nthe command gives\n{got}"
-    return None
+            return Problem(f"{extract.strip()}: {type(exc).__name__}: {exc}")
+    return out if check.block else (out.splitlines() or [""])[-1].strip()
+
+
+def fix(checks: list[Check], root: Path = ROOT) -> int:
+    """Rewrite each page so its checks hold; the number of values changed."""
+    changed = 0
+    by_file: dict[str, list[Check]] = {}
+    for c in checks:
+        by_file.setdefault(c.file, []).append(c)
+    for rel, items in by_file.items():
+        path = root / rel
+        lines = path.read_text().splitlines()
+        for c in sorted(items, key=lambda c: -c.line):  # bottom up: a block's new length moves no check above it
+            got = produce(c, root)
+            if isinstance(got, Problem) or got == c.expected.strip():
+                continue
+            i = c.line - 1
+            if c.block:
+                end = i + 1
+                while end < len(lines) and lines[end].strip():
+                    end += 1
+                lines[i + 1 : end] = got.splitlines()
+            else:
+                line = lines[i]
+                marker_at = line.find("-> " + c.expected, len(c.text_before))
+                if marker_at < 0:
+                    continue
+                head = c.text_before
+                at = head.rfind(c.expected)
+                if at >= 0:
+                    head = head[:at] + got + head[at + len(c.expected):]
+                tail = line[len(c.text_before):].replace("-> " + c.expected, "-> " + got, 1)
+                lines[i] = head + tail
+            changed += 1
+        path.write_text("\n".join(lines) + "\n")
+    return changed
 
 
 def count_tests(path: str) -> str:
@@ -155,6 +211,8 @@ def main(argv: list[str]) -> int:
         for c in checks:
             print(f"{c.file}:{c.line}: {'[slow] ' if c.slow else ''}{c.command}")
         return 0
+    if "--fix" in argv:
+        print(f"check_docs: {fix(checks)} values rewritten")
     failures = 0
     start = time.perf_counter()
     for c in checks:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import base64
 import json
 import re
@@ -11,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from report_helpers import SEED, records
+from report_helpers import PROVENANCE, SEED, make_fake_run, records
 
 from continuum_sim.cli import main
 from continuum_sim.report import detect_kind, write_report
@@ -57,7 +58,7 @@ def test_run_report_holds_outcome_metrics_every_plot_video_overrides_and_config(
     gap_mm = 1000 * metrics["min_arm_distance_m"]
     assert f"<td>{gap_mm:.4g}</td><td>mm</td>" in table
     # the video, linked next to the page
-    assert '<video id="video" controls preload="metadata" src="video.mp4">' in text
+    assert re.search(r'<video id="video" controls preload="metadata" poster="poster.png" src="video.mp4">', text)
     # the override against the shipped defaults, and the resolved config itself
     overrides = text[text.index('<table id="overrides">'):]
     assert f'<td class="l">simulation.seed</td><td class="l">{SEED}</td><td class="l">0</td>' in overrides
@@ -67,15 +68,15 @@ def test_run_report_holds_outcome_metrics_every_plot_video_overrides_and_config(
 def test_parameters_section_shows_the_registry_when_the_run_has_parameters_json(short_run):
     run = short_run
     written = parameters_section(run)  # every run writes parameters.json: the registry's records at its values
-    assert '<table id="parameters">' in written and "model.cable_friction.mu" in written
+    assert '<table id="parameters"' in written and "model.cable_friction.mu" in written
     registry = {"model.stiffness_scale": {"value": 1.0, "unit": "1", "status": "assumed", "source": "SPEC §1", "range": [0.5, 8]},
                 "arm.spool_radius": {"value": 0.01, "unit": "m", "status": "measured", "source": "paper", "range": [0.005, 0.02]}}
     (run / "parameters.json").write_text(json.dumps(registry))
     html = parameters_section(run)
-    assert '<table id="parameters">' in html
+    assert '<table id="parameters"' in html
     for name in ("path", "value", "unit", "status", "source", "range"):
         assert f'<th class="l">{name}</th>' in html
-    assert '<td class="l">arm.spool_radius</td><td class="l">0.01</td><td class="l">m</td><td class="l">measured</td>' in html
+    assert '<td class="l path">arm.spool_radius</td><td class="l">0.01</td><td class="l">m</td><td class="l">measured</td>' in html
 
 
 def test_sweep_report_compares_the_variants_links_kept_runs_and_embeds_the_plots(sweep):
@@ -214,3 +215,118 @@ def test_a_diverged_run_still_gets_its_report_and_outcome_line(tmp_path, short_r
     assert captured.out.strip().splitlines()[-1] == "outcome: task FAILED: diverged (metrics.json: status_reason)"
     text = (tmp_path / "d" / "report.html").read_text()
     assert "(run diverged (simulation diverged: t = 0.2 s: MuJoCo warning (test)))" in text
+
+
+def _table(text: str, css_id: str) -> str:
+    start = text.index(f'<table id="{css_id}"')
+    return text[start: text.index("</table>", start)]
+
+
+def _commands(text: str) -> list[list[str]]:
+    import html
+    import shlex
+
+    return [shlex.split(html.unescape(c)) for c in re.findall(r'<code class="cmd">(.*?)</code>', text)]
+
+
+def _parses(argv: list[str]) -> argparse.Namespace:
+    """``argv`` (``continuum-sim ...``) through the real CLI parser, without running anything."""
+    from continuum_sim.cli.parser import build_parser
+
+    assert argv[0] == "continuum-sim"
+    return build_parser().parse_args(argv[1:])
+
+
+@pytest.fixture
+def fake_run(tmp_path) -> Path:
+    return make_fake_run(tmp_path / "fake")
+
+
+def test_parameters_json_renders_as_one_row_per_registry_parameter_with_overrides_marked(fake_run):
+    from continuum_sim.params.registry import REGISTRY
+
+    doc = json.loads((fake_run / "parameters.json").read_text())
+    assert set(doc) == {"parameters", "overrides"} and doc["overrides"] == {"model.cable_friction.mu": 0.2}
+    text = write_report(fake_run).read_text()
+    table = _table(text, "parameters")
+    assert table.count("<tr") == 1 + len(REGISTRY) >= 25
+    header = re.findall(r'<th class="l">([^<]*)</th>', table[: table.index("</thead>")])
+    assert header == ["name", "path", "value", "unit", "status", "source", "range", "override"]
+    default = next(e["default"] for e in doc["parameters"] if e["path"] == "model.cable_friction.mu")
+    row = next(r for r in table.split("<tr")[1:] if "model.cable_friction.mu<" in r)
+    assert row.startswith(' class="ovr">') and f"yes (default {default!r})" in row
+    assert sum(1 for r in table.split("<tr")[1:] if r.startswith(' class="ovr"')) == 1
+    assert "\\u" not in text and "→" in table  # the registry's own characters, not JSON escapes
+
+
+def test_the_video_gets_a_poster_frame_two_thirds_in_and_none_without_a_video(fake_run):
+    import imageio.v3 as iio
+
+    text = write_report(fake_run).read_text()
+    poster = fake_run / "poster.png"
+    assert poster.is_file() and '<video id="video" controls preload="metadata" poster="poster.png" src="video.mp4">' in text
+    assert abs(float(iio.imread(poster).mean()) - 20 * 7) < 10  # frame 7 of 12 (grey level 20 k)
+    assert "poster.png" not in "".join(re.findall(r"<figcaption>(.*?)</figcaption>", text))  # not a plot
+    poster.unlink()
+    (fake_run / "video.mp4").unlink()
+    text = write_report(fake_run).read_text()
+    assert not poster.exists() and "poster=" not in text and "No video" in text
+
+
+def test_provenance_section_shows_the_commit_or_says_it_is_missing(fake_run, tmp_path):
+    text = write_report(fake_run).read_text()
+    assert 'id="provenance-section"' in text and "No provenance.json in this folder" in text
+    (fake_run / "provenance.json").write_text(json.dumps(PROVENANCE))
+    table = _table(write_report(fake_run).read_text(), "provenance")
+    assert "0123456789ab (dirty); changed: continuum_sim/report/run.py" in table
+    assert "c0dec0dec0de" in table and "aaaaaaaaaaaa" in table and "mujoco 3.17.0" in table and "(2 cores)" in table
+    study = tmp_path / "sens"
+    shutil.copytree(REPO / "docs" / "sensitivity" / "quick_open", study)
+    (study / "provenance.json").write_text(json.dumps(PROVENANCE))
+    assert "0123456789ab (dirty)" in _table(write_report(study).read_text(), "provenance")
+
+
+@pytest.mark.parametrize("name, method, columns", [
+    ("quick_open", "Morris", ("μ*", "μ* 95 % ± (mu_star_conf)", "σ", "μ")),
+    ("sobol_open", "Sobol&#x27;", ("S_T", "S_T 95 % ± (ST_conf)", "S1", "S1 95 % ± (S1_conf)")),
+])
+def test_a_sensitivity_folder_gets_its_indices_with_intervals_and_a_rerun_that_parses(tmp_path, name, method, columns):
+    folder = tmp_path / name
+    shutil.copytree(REPO / "docs" / "sensitivity" / name, folder)
+    (folder / "sweep.json").write_text("{}")  # the sample store's marker, which a real study folder holds too
+    (folder / "spec.toml").write_text("# the spec as given\n")
+    assert detect_kind(folder) == "sensitivity"
+    text = write_report(folder).read_text()
+    assert f"<title>Sensitivity study ({method}) {name}</title>" in text and "results.csv" not in text
+    summary = json.loads((folder / "summary.json").read_text())
+    first = _table(text, "indices-0")
+    header = re.findall(r"<th[^>]*>([^<]*)</th>", first)
+    assert header == ["parameter", *columns]
+    assert first.count("<tr>") == 1 + len(summary["parameters"])
+    assert text.count('class="indices"') == len(summary["metrics"])
+    assert len(_embedded_images(text)) == 2
+    rerun, report = _commands(text)
+    args = _parses(rerun)
+    assert args.func.__name__ == "cmd_sensitivity" and args.spec == str(folder / "spec.toml") and args.out == str(folder)
+    assert _parses(report).func.__name__ == "cmd_report"
+
+
+def test_an_optimize_folder_gets_its_pareto_front_objectives_first_and_a_rerun_that_parses(tmp_path):
+    folder = tmp_path / "task_tpe"
+    shutil.copytree(REPO / "docs" / "optimize" / "task_tpe", folder)
+    assert detect_kind(folder) == "optimize"
+    text = write_report(folder).read_text()
+    assert "<title>Design optimisation (TPE) task_tpe</title>" in text
+    summary = json.loads((folder / "summary.json").read_text())
+    objectives = [o["label"] for o in summary["objectives"]]
+    for css_id, n_rows in (("pareto", 2), ("best", len(summary["best"]))):
+        table = _table(text, css_id)
+        titles = re.findall(r'<th class="[^"]*" title="([^"]*)"', table)
+        assert titles[: 1 + len(objectives)] == ["trial", *objectives]
+        assert table.count('class="obj"') == len(objectives) and table.count("<tr>") == 1 + n_rows
+    assert '<a href="trial_24.toml">24</a>' in _table(text, "pareto")
+    assert len(_embedded_images(text)) == 2
+    rerun, report = _commands(text)
+    args = _parses(rerun)
+    assert args.func.__name__ == "cmd_optimize" and args.spec == "SPEC.toml" and args.out == str(folder)
+    assert _parses(report).func.__name__ == "cmd_report"

@@ -174,3 +174,77 @@ def test_bad_out_is_refused_before_work(tmp_path, capsys):
     assert main(["sensitivity", str(spec), "--out", str(afile)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--out" in err and "not a folder" in err
+
+
+# --- the uncertainty method (success probability over the ranges) ------------------------------------------
+
+
+def _uncertainty_spec(**extra):
+    from continuum_sim.sensitivity.spec import parse_spec
+
+    data = {"method": "uncertainty", "parameters": ["model.cable_friction.mu", "model.rope_modulus"],
+            "uncertainty": {"samples": 8, "seed": 1}, "success": {"cut_path_deviation_mm.mean": {"max": 2.5}},
+            "evaluation": {"kind": "scenario"}, **extra}
+    return parse_spec(data)
+
+
+def test_uncertainty_spec_samples_a_latin_hypercube_and_adds_the_outcome_metrics():
+    from continuum_sim.sensitivity.design import sample_matrix, sample_params
+    from continuum_sim.sensitivity.spec import n_evaluations
+
+    spec = _uncertainty_spec()
+    assert spec.metrics[:3] == ("task.completed", "task.failure", "cut_path_deviation_mm.mean")
+    assert n_evaluations(spec) == 8
+    matrix = sample_matrix(spec)
+    assert matrix.shape == (8, 2)
+    # Latin hypercube: each parameter has exactly one sample in each of the 8 equal strata of its range
+    for j, factor in enumerate(spec.factors):
+        lo, hi = factor.bounds
+        strata = np.floor((matrix[:, j] - lo) / (hi - lo) * 8).astype(int)
+        assert sorted(strata.tolist()) == list(range(8))
+    assert (sample_matrix(spec) == matrix).all()  # a pure function of the spec: a resumed study finds its records
+    assert len(sample_params(spec, matrix)) == 8
+
+
+def test_uncertainty_spec_refuses_bad_success_tables():
+    from continuum_sim.configio import ConfigError
+
+    for bad, field in (({"success": {"x": 2.5}}, "success.x"), ({"success": {"m": {"max": "a"}}}, "success.m.max"),
+                       ({"success": {"m": {"min": 3, "max": 2}}}, "success.m")):
+        with pytest.raises(ConfigError) as err:
+            _uncertainty_spec(**bad)
+        assert err.value.field == field
+    with pytest.raises(ConfigError) as err:
+        from continuum_sim.sensitivity.spec import parse_spec
+
+        parse_spec({"method": "morris", "parameters": ["model.cable_friction.mu"], "success": {"m": {"max": 1}}})
+    assert err.value.field == "success"
+
+
+def test_uncertainty_analysis_counts_successes_with_the_exact_binomial_interval():
+    from continuum_sim.sensitivity import uncertainty
+
+    spec = _uncertainty_spec()
+    values = np.array([[0.05, 4e10], [0.1, 5e10], [0.2, 6e10], [0.25, 7e10], [0.28, 3.5e10]])
+    ok = {"status": "ok", "metrics": {"task.completed": 1.0, "cut_path_deviation_mm.mean": 2.0}}
+    rows = [
+        ok,
+        ok,
+        {"status": "ok", "metrics": {"task.completed": 1.0, "cut_path_deviation_mm.mean": 3.3}},
+        {"status": "ok", "metrics": {"task.completed": 0.0, "task.failure": "cut_incomplete"}},
+        None,
+    ]
+    a = uncertainty.analyze(spec, values, rows)
+    assert (a["recorded"], a["successes"], a["completed"]) == (4, 2, 3)
+    assert a["probability"] == 0.5
+    assert a["failures"] == {"completed, but not cut_path_deviation_mm.mean <= 2.5": 1, "cut_incomplete": 1}
+    # Clopper-Pearson against its closed form at the edges: k = 0 -> [0, 1 - (alpha/2)^(1/n)]
+    low, high = uncertainty.clopper_pearson(0, 10)
+    assert low == 0.0 and high == pytest.approx(1 - 0.025 ** (1 / 10), rel=1e-9)
+    low, high = uncertainty.clopper_pearson(10, 10)
+    assert high == 1.0 and low == pytest.approx(0.025 ** (1 / 10), rel=1e-9)
+    # mu: both successes in the lower half of its range, none in the upper
+    mu = a["success_by_half_range"]["model.cable_friction.mu"]
+    assert mu["lower"] == {"n": 2, "success": 1.0} and mu["upper"] == {"n": 2, "success": 0.0}
+    assert uncertainty.strength(spec, a)["model.cable_friction.mu"] == 1.0
+    assert 0.0 <= a["base_position"]["model.cable_friction.mu"]["fraction_of_range"] <= 1.0

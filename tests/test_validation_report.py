@@ -101,3 +101,22 @@ def test_cli_quick_never_writes_the_committed_report(tmp_path, capsys, monkeypat
     assert "**Full report**" in text.splitlines()[4] or "**Full report**" in text
     data = json.loads((tmp_path / "runs" / "validation-quick" / "report.json").read_text())
     assert data["full_report"]["available"] is True
+
+
+def test_printed_summary_fits_100_columns_and_explains_known_failures():
+    """``validate`` prints a table no wider than 100 columns, and the full report's failing families in context."""
+    from continuum_sim.validation.report import CONSOLE_WIDTH, Report, full_report_status
+
+    long = "a quantity whose description is much longer than any terminal column would comfortably hold " * 2
+    rows = [Row("tendon.section0", "Cosserat tendon model, section 0 (physical disks, hinge_pair), τ ≤ 1·120.4 N, "
+                "15 tension sets × 3 gravity", long, "≤ 1 % L", "4.119 % L", False, 4.1, 1.0),
+            Row("cosserat.beam", "Euler–Bernoulli small deflection", "tip force: δ vs F·L³/3EI", "≤ 0.1 %",
+                "-1.14e-07 %", True, 0.0, 0.1)]
+    report = Report(True, rows=rows, errors={"x.broken": "RuntimeError: " + "boom " * 40})
+    report.full_status = full_report_status(quick_checks=["cosserat.beam"], quick_failing=["tendon.section0"])
+    text = report.console(report_md="runs/validation-quick/report.md")
+    assert CONSOLE_WIDTH == 100
+    assert all(len(line) <= 100 for line in text.splitlines()), max(text.splitlines(), key=len)
+    assert "FAIL" in text and "ERROR" in text and "**" not in text
+    assert "Known failures" in text and "docs/validation.md" in text
+    assert "Not a known failure: x.*" in text  # a failing family nobody explained is called out

@@ -132,6 +132,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     import warnings
 
     argv = list(sys.argv[1:] if argv is None else argv)
+    argv_given = list(argv)
     debug = "--debug" in argv or os.environ.get("CONTINUUM_SIM_DEBUG", "") not in ("", "0")
     argv = [a for a in argv if a != "--debug"]
     parser = build_parser()
@@ -140,6 +141,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:  # --help (0) or a bad argument (2, one line already printed)
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
     prog = f"continuum-sim {args.command}"
+    from .. import provenance
+
+    provenance.set_invocation(["continuum-sim", *argv_given], command=args.command)  # provenance.json's argv and command
 
     def fail(code: int, message: str) -> int:
         if debug:
@@ -205,6 +209,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return fail(EXIT_DIVERGED, f"error: {exc}")
         return fail(EXIT_INTERNAL, f"internal error: {type(exc).__name__}: {clip_line(str(exc), 250)} (rerun with --debug for the traceback)")
     finally:
+        provenance.set_invocation(None)
         sys.setrecursionlimit(old_limit)
         for name, value in gl_environment.items():  # main() called in-process (tests, scripts) leaves it as it was
             if value is None:

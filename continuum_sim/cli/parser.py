@@ -8,11 +8,22 @@ from .errors import OneLineParser
 from .geometry_commands import _cmd_fk, _cmd_ik, _cmd_plan, _cmd_workspace
 from .run_commands import _cmd_build_model, _cmd_metrics, _cmd_run, _cmd_sweep, _cmd_view
 
+DESCRIPTION = (
+    "Simulate the dual-arm, cable-driven continuum robot of 'Collaborative Continuum Robots for Remote "
+    "Engineering Operations' (Biomimetics 2023) in MuJoCo: plan and run its sample-removal task, check the "
+    "model against independent references, and study designs and the assumed parameters."
+)
+EPILOG = (
+    "Start with 'continuum-sim run --out runs/default' (the whole task; add --video for an MP4). "
+    "'continuum-sim COMMAND --help' lists a command's options. Bad input ends with one line on stderr and "
+    "exit code 2 (docs/errors.md); the documentation is README.md and docs/."
+)
+
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = OneLineParser(prog="continuum-sim", description=__doc__)
+    parser = OneLineParser(prog="continuum-sim", description=DESCRIPTION, epilog=EPILOG)
     parser.add_argument("--debug", action="store_true", help="show tracebacks (also accepted after the command)")
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="command", required=True, title="commands", metavar="COMMAND")
 
     fk = sub.add_parser("fk", help="tip pose and cable lengths of one configuration")
     fk.add_argument("q", nargs="+", type=float, metavar="Q",

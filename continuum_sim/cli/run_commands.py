@@ -191,6 +191,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             batch=args.batch,
             retry_failed=args.retry_failed,
             progress=not args.quiet,
+            spec_path=args.spec,
         )
     except KeyboardInterrupt:
         print(f"continuum-sim sweep: interrupted; finished variants are kept in {out}/records, rerun to resume", file=sys.stderr)

@@ -1,4 +1,4 @@
-"""Cable tensions that hold an arm pose quasi-statically (motor sizing, issue 12).
+"""Cable tensions that hold an arm pose quasi-statically (motor sizing).
 
 At a PCC pose the joint springs push back with ``qfrc_spring``; the cables balance it
 through their tendon Jacobians, Jᵀ·T = −qfrc_spring with T ≥ 0 (non-negative least

@@ -163,7 +163,7 @@ def _add_plate(root: mjcf.RootElement, layout: TaskLayout, scene: SceneOptions, 
     foam = dict(
         solref=plate.contact_solref,
         solimp=plate.contact_solimp,
-        friction=(scene.foam_friction, 0.005, 0.0001),
+        friction=(scene.foam_friction, scene.foam_torsional_friction, scene.foam_rolling_friction),
         priority=FOAM_PRIORITY,
     )
     origin = plate.centre
@@ -202,8 +202,8 @@ def _add_plate(root: mjcf.RootElement, layout: TaskLayout, scene: SceneOptions, 
         body1=SAMPLE_BODY,
         body2=PLATE_BODY,
         anchor=tuple(centre - origin),
-        solref=(2 * timestep, 1.0),
-        solimp=(0.99, 0.999, 0.001, 0.5, 2),
+        solref=(2 * timestep, scene.weld_damping_ratio),
+        solimp=(*scene.weld_solimp, 0.5, 2),
     )
 
 

@@ -59,6 +59,25 @@ class ToolOptions:
     # stops. Harder still (0.99, 0.999) tripled the solver iterations while carrying.
     pad_solref: tuple[float, float] = (0.008, 1.0)
     pad_solimp: tuple[float, float, float] = (0.95, 0.99, 0.001)
+    # The pads' torsional and rolling friction (MuJoCo's 2nd and 3rd friction coefficients):
+    # MuJoCo's defaults; they only resist spin and rolling of the gripped sample about the contact.
+    pad_torsional_friction: float = 0.005  # m
+    pad_rolling_friction: float = 0.0001  # m
+    # How the tools' masses (model.grinder_mass, model.gripper_mass) are split over their bodies:
+    # grinder: the housing (bearings, holder) takes this share, the spindle the rest, of which
+    # the bare shaft takes grinder_shaft_fraction and the cutter the remainder; gripper: the palm
+    # (pulley, slides) takes this share, each jaw half the rest, of which its pad takes
+    # gripper_pad_fraction and its finger plate the remainder.
+    grinder_housing_fraction: float = 0.85
+    grinder_shaft_fraction: float = 0.2
+    gripper_palm_fraction: float = 0.6
+    gripper_pad_fraction: float = 0.2
+    # A jaw's slide: reflected inertia of its pulley and slide (kg, regularises the light jaw)
+    # and its end stops (MuJoCo solreflimit (time constant, damping ratio) and solimplimit
+    # (d0, dwidth, width)): hard stops; the default soft limit let a jaw overrun by 3 mm at full grip force.
+    gripper_jaw_armature: float = 1e-4
+    gripper_stop_solref: tuple[float, float] = (0.01, 1.0)
+    gripper_stop_solimp: tuple[float, float, float] = (0.95, 0.99, 0.001)
 
     def __post_init__(self) -> None:
         require_range("housing_radius", self.housing_radius, 0.0, 0.1)
@@ -85,6 +104,13 @@ class ToolOptions:
         require_solref("pad_solref", self.pad_solref)
         require_solimp("pad_solimp", self.pad_solimp)
         require_range("pad_friction", self.pad_friction, 0.0, 10.0, low_inclusive=True)
+        require_range("pad_torsional_friction", self.pad_torsional_friction, 0.0, 1.0, low_inclusive=True)
+        require_range("pad_rolling_friction", self.pad_rolling_friction, 0.0, 1.0, low_inclusive=True)
+        for name in ("grinder_housing_fraction", "grinder_shaft_fraction", "gripper_palm_fraction", "gripper_pad_fraction"):
+            require_range(name, getattr(self, name), 0.0, 1.0, high_inclusive=False)
+        require_range("gripper_jaw_armature", self.gripper_jaw_armature, 0.0, 1.0, low_inclusive=True)
+        require_solref("gripper_stop_solref", self.gripper_stop_solref)
+        require_solimp("gripper_stop_solimp", self.gripper_stop_solimp)
         # The cable must out-pull the opening springs at full travel, or the jaws never close.
         most = self.gripper_max_force - self.gripper_spring * self.gripper_jaw_travel
         if self.gripper_preload >= most:
@@ -171,6 +197,14 @@ class SceneOptions:
     foam: FoamOptions = field(default_factory=FoamOptions)  # what the cutter cuts (voxels, cutting energy)
     sample_gap: float = 0.0002  # clearance between the sample's box and the plate's boxes
     foam_friction: float = 1.0
+    # The foam's (plate, sample) torsional and rolling friction: MuJoCo's defaults (m).
+    foam_torsional_friction: float = 0.005
+    foam_rolling_friction: float = 0.0001
+    # The weld holding the sample to the plate until it is cut free: its solref time constant
+    # is 2 × the timestep (the stiffest MuJoCo keeps stable: glue, not foam); these are the
+    # rest of it, the damping ratio and the impedance (d0, dwidth, width), near-hard.
+    weld_damping_ratio: float = 1.0
+    weld_solimp: tuple[float, float, float] = (0.99, 0.999, 0.001)
     bench_height: float = 0.75  # floor is this far below the bench top (= pack bottom)
     render_width: int = 1280
     render_height: int = 720
@@ -182,6 +216,10 @@ class SceneOptions:
     def __post_init__(self) -> None:
         require_range("sample_gap", self.sample_gap, 0.0, 0.002, low_inclusive=True)
         require_range("foam_friction", self.foam_friction, 0.0, 10.0, low_inclusive=True)
+        require_range("foam_torsional_friction", self.foam_torsional_friction, 0.0, 1.0, low_inclusive=True)
+        require_range("foam_rolling_friction", self.foam_rolling_friction, 0.0, 1.0, low_inclusive=True)
+        require_positive("weld_damping_ratio", self.weld_damping_ratio)
+        require_solimp("weld_solimp", self.weld_solimp)
         require_range("bench_height", self.bench_height, 0.05, 3.0, low_inclusive=True)
         require_int("render_width", self.render_width, 16, 8192)
         require_int("render_height", self.render_height, 16, 8192)

@@ -86,7 +86,7 @@ def build_grinder(
     radius = cutter_diameter / 2
     cutter_base = length - tools.cutter_length
     housing_top = cutter_base - 0.003  # a short bare shaft between housing and cutter
-    housing_mass = 0.85 * options.grinder_mass
+    housing_mass = tools.grinder_housing_fraction * options.grinder_mass
     spindle_mass = options.grinder_mass - housing_mass
     shaft_radius = min(0.002, 0.6 * radius)
 
@@ -112,7 +112,7 @@ def build_grinder(
         armature=tools.spindle_armature,
         damping=0.0,
     )
-    shaft_mass = 0.2 * spindle_mass
+    shaft_mass = tools.grinder_shaft_fraction * spindle_mass
     spindle.add(
         "geom",
         name="shaft",
@@ -216,7 +216,7 @@ def build_gripper(
     finger_x = tools.gripper_open_gap / 2 + pad_t + finger_t / 2  # finger centre, open
     palm_half_x = finger_x + finger_t / 2 + 0.002
     palm_half_y = tools.gripper_pad_width / 2 + 0.002
-    palm_mass = 0.6 * options.gripper_mass
+    palm_mass = tools.gripper_palm_fraction * options.gripper_mass
     jaw_mass = (options.gripper_mass - palm_mass) / 2
     tilt = math.radians(pad_tilt_deg)
     pad_quat = (math.cos(-tilt / 2), 0.0, math.sin(-tilt / 2), 0.0)  # about tool y by −tilt
@@ -245,10 +245,10 @@ def build_gripper(
             stiffness=tools.gripper_spring,
             springref=jaw_spring_reference(tools),
             damping=tools.gripper_damping,
-            armature=1e-4,
+            armature=tools.gripper_jaw_armature,
             # A hard end stop: the default soft limit let a jaw overrun by 3 mm at full grip force.
-            solreflimit=(0.01, 1.0),
-            solimplimit=(0.95, 0.99, 0.001, 0.5, 2),
+            solreflimit=tools.gripper_stop_solref,
+            solimplimit=(*tools.gripper_stop_solimp, 0.5, 2),
         )
         jaw.add(
             "geom",
@@ -256,7 +256,7 @@ def build_gripper(
             type="box",
             size=(finger_t / 2, tools.gripper_pad_width / 2, finger_half_z),
             pos=(0, 0, palm_top + finger_half_z),
-            mass=0.8 * jaw_mass,
+            mass=(1.0 - tools.gripper_pad_fraction) * jaw_mass,
             rgba=(0.55, 0.57, 0.6, 1.0),
         )
         jaw.add(
@@ -267,8 +267,8 @@ def build_gripper(
             # Turned about the centre of its gripping face, which stays on the closing line.
             pos=(-sign * (finger_t / 2 + pad_t) + sign * pad_t / 2 * math.cos(tilt), 0, length + sign * pad_t / 2 * math.sin(tilt)),
             quat=pad_quat,
-            mass=0.2 * jaw_mass,
-            friction=(tools.pad_friction, 0.005, 0.0001),
+            mass=tools.gripper_pad_fraction * jaw_mass,
+            friction=(tools.pad_friction, tools.pad_torsional_friction, tools.pad_rolling_friction),
             priority=PAD_PRIORITY,
             solref=tools.pad_solref,
             solimp=tools.pad_solimp,

@@ -1,4 +1,4 @@
-"""Design optimisation on the sweep machinery (issue 28).
+"""Design optimisation on the sweep machinery.
 
 ``load_spec`` validates a study spec (design variables, objectives, constraints,
 robustness over the registry's assumed parameters, optimiser); ``run_study`` asks Optuna

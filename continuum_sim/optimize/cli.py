@@ -17,7 +17,8 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("runs/optimize") / Path(args.spec).stem
     check_output_dir(out, create=False)
     try:
-        result = run_study(spec, out, workers=args.workers, backend=args.backend, address=args.address, progress=not args.quiet)
+        result = run_study(spec, out, workers=args.workers, backend=args.backend, address=args.address, progress=not args.quiet,
+                           spec_path=args.spec)
     except KeyboardInterrupt:
         print(f"continuum-sim optimize: interrupted; told trials and finished evaluations are kept in {out}, rerun to resume",
               file=sys.stderr)

@@ -54,7 +54,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..configio import ConfigError, get_path, parse_toml_text, read_config_text, require_int, require_range, to_dict
+from ..configio import ConfigError, get_path, migration_note, parse_toml_text, read_config_text, require_int, require_range, to_dict, unknown_path_error
 from ..params.registry import parameter
 from ..scenario.config import ScenarioConfig
 from ..sweep.evaluations import Evaluation, parse_evaluation
@@ -199,7 +199,7 @@ def _table(data: dict[str, Any], key: str, allowed: tuple[str, ...]) -> dict[str
         raise ConfigError(key, f"must be a table (got {type(raw).__name__})")
     for name in raw:
         if name not in allowed:
-            raise ConfigError(f"{key}.{name}", f"unknown key; allowed keys are {', '.join(allowed)}")
+            raise unknown_path_error(f"{key}.{name}", f"unknown key; allowed keys are {', '.join(allowed)}")
     return raw
 
 
@@ -214,7 +214,8 @@ def _variable(base: ScenarioConfig, path: Any, raw: Any) -> Variable:
     try:
         current = get_path(base, path)
     except ConfigError:
-        raise ConfigError(where, "unknown config path (a design variable must name a numeric field of the scenario, e.g. control.pretension)") from None
+        note = migration_note(path) if isinstance(path, str) else None  # a removed or renamed field: say what replaces it
+        raise ConfigError(where, note or "unknown config path (a design variable must name a numeric field of the scenario, e.g. control.pretension)") from None
     if isinstance(current, bool) or not isinstance(current, (int, float)):
         raise ConfigError(where, f"not a numeric field (it is {type(current).__name__}); a design variable is a number")
     if not isinstance(raw, dict):

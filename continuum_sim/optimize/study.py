@@ -35,7 +35,7 @@ import numpy as np
 from ..configio import ConfigError
 from ..sweep.runner import preflight
 from ..sweep.spec import Variant
-from ..sweep.store import ResultStore
+from ..sweep.store import ResultStore, write_provenance
 from .design import Params, StudySweep, check_config, check_designs, design_params, evaluation_variant, robustness_samples, study_sweep
 from .spec import SUCCESS, OptimizeSpec
 
@@ -182,8 +182,12 @@ def run_study(
     backend: Backend = "local",
     address: str | None = None,
     progress: bool = True,
+    spec_path: str | os.PathLike[str] | None = None,
 ) -> StudyResult:
-    """Run (or resume) the study of ``spec`` in folder ``out`` until its trial budget is told; then write the report."""
+    """Run (or resume) the study of ``spec`` in folder ``out`` until its trial budget is told; then write the report.
+
+    ``spec_path``: the spec file, hashed into ``provenance.json`` (written at the start and at the end).
+    """
     import optuna
     from tqdm import tqdm
 
@@ -207,6 +211,7 @@ def run_study(
     budget = spec.optimizer.trials
     with store.lock():
         store.prepare(sweep)
+        write_provenance(root, "optimize", spec, spec_path)
         records = store.load()
         study = open_study(spec, root)
         running = optuna.trial.TrialState.RUNNING
@@ -233,6 +238,7 @@ def run_study(
             bar.close()
         trials = study.get_trials(deepcopy=False)
         summary = write_report(spec, trials, records, root)
+        write_provenance(root, "optimize", spec, spec_path)
     n_failed = sum(1 for t in trials if t.state == optuna.trial.TrialState.FAIL)
     return StudyResult(root, len(trials), n_resumed, counts["run"], counts["reused"], n_failed, summary)
 

@@ -1,4 +1,4 @@
-"""Cable friction in the disk holes: capstan tension loss with stick/slip (issue 13).
+"""Cable friction in the disk holes: capstan tension loss with stick/slip.
 
 Each cable of the generated model is ONE tendon (spatial, or the native path's), so MuJoCo
 transmits one uniform tension T along it (actuator force plus the tendon's own

@@ -330,7 +330,7 @@ def section_segment(geometry: ArmGeometry, section: SectionGeometry, elements: i
     leaf = LeafSection(section.hinge_width, section.hinge_thickness, geometry.material.youngs_modulus,
                        geometry.material.poisson_ratio)
     return FlexureSegment(leaf, section.leaf_length(geometry.disk_thickness), section.leaf_radius,
-                          tuple(section.leaf_angles_deg), elements)
+                          tuple(section.leaf_angles_deg), elements, geometry.leaf_bow_fraction)
 
 
 TABLE_VERSION = 1  # bump when the solver or the grid changes: invalidates the on-disk cache

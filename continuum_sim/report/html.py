@@ -28,7 +28,21 @@ pre{background:#f7f7f7;padding:.6em;overflow:auto;font-size:.8em;max-height:40em
 video{max-width:100%;border:1px solid #ddd}
 .banner{padding:.6em 1em;border-radius:4px;margin:.6em 0;font-size:1.1em}
 .banner.ok{background:#e6f4e8}.banner.bad{background:#fbe9e9}
+table.params td{vertical-align:top}table.params td.src{min-width:16em;max-width:30em;white-space:normal;font-size:.9em}
+table.params td.path{font-family:monospace;font-size:.9em;white-space:nowrap}tr.ovr td{background:#fff6d6}td.rng{white-space:nowrap}
+table.study th{white-space:normal;max-width:9em;vertical-align:bottom}table.study th.obj{background:#e8eefb}
+code.cmd{display:block;background:#f7f7f7;padding:.4em .6em;margin:.3em 0;white-space:pre-wrap;word-break:break-all}
+h3{font-size:1em;margin:1em 0 .2em}
 """
+
+
+def read_json(path: Path) -> dict[str, Any]:
+    """A JSON object from ``path``; {} when missing or unreadable (the page says what is missing)."""
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
 
 
 def esc(value: Any) -> str:
@@ -53,13 +67,15 @@ def number(value: Any, digits: int = 4) -> str:
 
 
 def table(headers: Sequence[str], rows: Iterable[Sequence[Any]], *, left: int = 1, css_id: str | None = None,
-          raw: bool = False) -> str:
+          raw: bool = False, css_class: str | None = None, raw_headers: bool = False) -> str:
     """An HTML table; the first ``left`` columns left-aligned (names), the rest right-aligned (numbers).
 
-    ``raw``: cells are already HTML (links); otherwise they are escaped.
+    ``raw``: cells are already HTML (links); otherwise they are escaped. ``raw_headers``: the
+    header cells are already HTML (whole ``<th>`` elements are still built here).
     """
-    ident = f' id="{esc(css_id)}"' if css_id else ""
-    head = "".join(f'<th class="l">{esc(h)}</th>' if i < left else f"<th>{esc(h)}</th>" for i, h in enumerate(headers))
+    ident = (f' id="{esc(css_id)}"' if css_id else "") + (f' class="{esc(css_class)}"' if css_class else "")
+    label = (lambda text: text) if raw_headers else esc
+    head = "".join(f'<th class="l">{label(h)}</th>' if i < left else f"<th>{label(h)}</th>" for i, h in enumerate(headers))
     body = []
     for row in rows:
         cells = []
@@ -106,6 +122,20 @@ def banner(ok: bool, text: str) -> str:
     """The outcome line at the top of a page (green when ``ok``, red otherwise)."""
     cls = "ok" if ok else "bad"
     return f'<div class="banner {cls}" id="outcome"><span class="{cls}">{esc(text)}</span></div>'
+
+
+def dotted(name: str) -> str:
+    """A dotted parameter or metric path escaped, with break opportunities after its dots and underscores (narrow headers)."""
+    import re
+
+    return "".join(esc(part) + "<wbr>" if part.endswith((".", "_")) else esc(part) for part in re.split(r"(?<=[._])", name))
+
+
+def command(argv: Sequence[str]) -> str:
+    """A shell command line to copy, as a block of code."""
+    import shlex
+
+    return f'<code class="cmd">{esc(shlex.join(argv))}</code>'
 
 
 def section(title: str, body: str, css_id: str | None = None) -> str:

@@ -7,7 +7,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from ..configio import ConfigError, atomic_write_text
-from .run import run_page
+from .design_studies import optimize_page, sensitivity_page, study_kind
+from .run import run_page, write_poster
 from .studies import generic_page, identify_page, sweep_page, validation_page
 
 REPORT_NAME = "report.html"
@@ -17,15 +18,20 @@ PAGES: dict[str, Callable[[Path], str]] = {
     "sweep": sweep_page,
     "validation": validation_page,
     "identification": identify_page,
+    "sensitivity": sensitivity_page,
+    "optimize": optimize_page,
     "study": generic_page,
 }
 
 
 def detect_kind(folder: Path) -> str:
-    """``run``, ``sweep``, ``validation``, ``identification`` or ``study`` (any other folder with a summary or plots).
+    """``run``, ``sensitivity``, ``optimize``, ``sweep``, ``validation``, ``identification`` or ``study`` (any other folder with a summary or plots).
 
     Recognised by the files each command writes: a run its ``config.toml`` with
-    ``metrics.json``/``trajectory.npz``; a sweep ``sweep.json``; an identification
+    ``metrics.json``/``trajectory.npz``; a sensitivity study its ``summary.json`` naming the
+    method (Morris or Sobol'), an optimisation its ``summary.json`` with the objectives and the
+    sampler (both checked before ``sweep.json``, which a sensitivity folder also holds, as its
+    sample store); a sweep ``sweep.json``; an identification
     ``identified.toml`` beside ``report.json``; a validation ``report.json`` holding ``rows``.
     A folder with none of these but a JSON or CSV summary or PNGs is a ``study`` (so is
     ``continuum-sim replay``'s folder, recognised by its ``replay.json``).
@@ -37,6 +43,9 @@ def detect_kind(folder: Path) -> str:
     replay = (folder / "replay.json").is_file()  # `continuum-sim replay`'s folder: config and trajectory too, but a study
     if (folder / "config.toml").is_file() and not replay and any((folder / n).is_file() for n in ("metrics.json", "trajectory.npz", "RUNNING")):
         return "run"
+    design = study_kind(folder)
+    if design is not None:
+        return design
     if (folder / "sweep.json").is_file():
         return "sweep"
     if (folder / "identified.toml").is_file() and (folder / "report.json").is_file():
@@ -59,7 +68,10 @@ def report_page(folder: Path, kind: str | None = None) -> str:
 
 
 def write_report(folder: Path, kind: str | None = None) -> Path:
-    """Write ``folder/report.html`` atomically; returns its path."""
+    """Write ``folder/report.html`` atomically (a run's video poster first); returns its path."""
+    kind = kind or detect_kind(folder)
+    if kind == "run":
+        write_poster(Path(folder))
     path = Path(folder) / REPORT_NAME
     atomic_write_text(path, report_page(folder, kind))
     return path

@@ -8,19 +8,12 @@ from pathlib import Path
 from typing import Any
 
 from . import html as h
+from .html import read_json
+from .provenance import folder_page
 
 DEFAULTS_TOML = Path(__file__).resolve().parent.parent / "data" / "scenario.toml"  # the shipped defaults
 PLOT_ORDER = ("toolpath.png", "tip_error.png", "cut_kerf.png", "cut_force.png", "section_angles.png", "cable_tensions.png")
 VIDEO_NAMES = ("video.mp4", "video.diverged.mp4", "video.failed.mp4", "video.interrupted.mp4")
-
-
-def read_json(path: Path) -> dict[str, Any]:
-    """A JSON object from ``path``; {} when missing or unreadable (the page says what is missing)."""
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return {}
-    return data if isinstance(data, dict) else {}
 
 
 def _get(metrics: dict[str, Any], dotted: str) -> Any:
@@ -122,12 +115,69 @@ def overrides(config_path: Path, defaults_path: Path = DEFAULTS_TOML) -> list[tu
     return [(k, mine.get(k), base.get(k)) for k in sorted(set(mine) | set(base)) if mine.get(k) != base.get(k)]
 
 
-def parameters_section(run_dir: Path) -> str:
-    """Parameter values of the run: the registry's table when the folder has ``parameters.json``, else the overrides.
+PARAMETER_COLUMNS = ("name", "path", "value", "unit", "status", "source", "range", "override")
 
-    ``parameters.json`` (written by the parameter registry when it exists) is read as either a
-    list of objects or an object mapping each parameter path to an object; the columns are
-    whatever keys those objects hold (value, unit, status, source, range, ...), the path first.
+
+def parameter_entries(data: Any) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """(one dict per parameter, the overrides ``{path: value}``) of a ``parameters.json`` document.
+
+    Three shapes are read: the registry's ``{"parameters": [{path, name, value, default, unit,
+    status, source, range, log, overridden}, ...], "overrides": {path: value}}``, a bare list of
+    such objects, and an older ``{path: {value, unit, ...}}`` mapping.
+    """
+    if isinstance(data, dict) and isinstance(data.get("parameters"), list):
+        entries = [e for e in data["parameters"] if isinstance(e, dict)]
+        given = data.get("overrides")
+        return entries, dict(given) if isinstance(given, dict) else {}
+    if isinstance(data, list):
+        return [e for e in data if isinstance(e, dict)], {}
+    if isinstance(data, dict):
+        return [{"path": k, **(v if isinstance(v, dict) else {"value": v})} for k, v in data.items()], {}
+    return [], {}
+
+
+def _range_text(entry: dict[str, Any]) -> str:
+    bounds = entry.get("range")
+    if not isinstance(bounds, (list, tuple)) or len(bounds) != 2:
+        return "" if bounds is None else _cell(bounds)
+    return f"{h.number(bounds[0])} … {h.number(bounds[1])}" + (" (log)" if entry.get("log") else "")
+
+
+def parameters_table(entries: list[dict[str, Any]], overrides_: dict[str, Any]) -> str:
+    """The registry's parameters as a table, one row each: the columns of ``PARAMETER_COLUMNS`` that any row has.
+
+    A row whose path the run overrode (listed in ``overrides_``, or marked ``overridden``) is
+    highlighted and its override cell shows the shipped default beside it.
+    """
+    overridden = {e.get("path") for e in entries if e.get("overridden")} | set(overrides_)
+    present = {k for e in entries for k in e} | ({"override"} if overridden or any("default" in e for e in entries) else set())
+    columns = [c for c in PARAMETER_COLUMNS if c in present]
+    head = "".join(f'<th class="l">{h.esc(c)}</th>' for c in columns)
+    body = []
+    for e in entries:
+        changed = e.get("path") in overridden
+        cells = []
+        for c in columns:
+            if c == "override":
+                text = f"yes (default {_cell(e.get('default'))})" if changed and "default" in e else ("yes" if changed else "")
+                cells.append(f'<td class="l">{h.esc(text)}</td>')
+            elif c == "range":
+                cells.append(f'<td class="l rng">{h.esc(_range_text(e))}</td>')
+            else:
+                cls = {"source": "l src", "path": "l path"}.get(c, "l")
+                cells.append(f'<td class="{cls}">{h.esc(_cell(e.get(c), absent=""))}</td>')
+        row_class = ' class="ovr"' if changed else ""
+        body.append(f"<tr{row_class}>" + "".join(cells) + "</tr>")
+    return (f'<div class="wide"><table id="parameters" class="params"><thead><tr>{head}</tr></thead>'
+            f"<tbody>{''.join(body)}</tbody></table></div>")
+
+
+def parameters_section(run_dir: Path) -> str:
+    """Parameter values of the run: the registry's table when the folder has ``parameters.json``, then the overrides.
+
+    ``parameters.json`` is written by every run (``scenario.runner.write_parameters``): each
+    registry parameter's value, unit, status and source, and the ones this run overrode. Below
+    it, the fields of ``config.toml`` that differ from the shipped defaults (registry or not).
     """
     run_dir = Path(run_dir)
     parts = []
@@ -138,18 +188,11 @@ def parameters_section(run_dir: Path) -> str:
         except (OSError, ValueError) as exc:
             data = None
             parts.append(f"<p class=\"bad\">parameters.json is unreadable ({h.esc(exc)})</p>")
-        entries: list[dict[str, Any]] = []
-        if isinstance(data, dict):
-            entries = [{"path": k, **(v if isinstance(v, dict) else {"value": v})} for k, v in data.items()]
-        elif isinstance(data, list):
-            entries = [e for e in data if isinstance(e, dict)]
+        entries, given = parameter_entries(data)
         if entries:
-            columns: list[str] = []
-            for e in entries:
-                columns += [k for k in e if k not in columns]
-            rows = [[_cell(e.get(c)) for c in columns] for e in entries]
-            parts.append("<p>From the parameter registry (<code>parameters.json</code>):</p>"
-                         + h.table(columns, rows, left=len(columns), css_id="parameters"))
+            n_over = sum(1 for e in entries if e.get("overridden") or e.get("path") in given)
+            parts.append(f"<p>The parameter registry at this run's values (<code>parameters.json</code>): {len(entries)} "
+                         f"parameters, {n_over} overridden (highlighted).</p>" + parameters_table(entries, given))
     diff = overrides(run_dir / "config.toml")
     if diff:
         parts.append("<p>Fields that differ from the shipped defaults (<code>continuum_sim/data/scenario.toml</code>):</p>"
@@ -160,26 +203,78 @@ def parameters_section(run_dir: Path) -> str:
     return "".join(parts)
 
 
-def _cell(value: Any) -> str:
+def _cell(value: Any, absent: str = "(absent)") -> str:
+    """A parameter value as text: floats exactly (repr), lists and objects as JSON with their own characters."""
     if value is None:
-        return "(absent)"
+        return absent
     if isinstance(value, float):
         return repr(value)
     if isinstance(value, (list, dict)):
-        return json.dumps(value)
+        return json.dumps(value, ensure_ascii=False)
     return str(value)
+
+
+POSTER_NAME = "poster.png"
+POSTER_AT = 2 / 3  # the poster frame, as a fraction of the video: well into the cut for the default task
+
+
+def find_video(run_dir: Path) -> Path | None:
+    """The run's video (complete or partial), if any."""
+    for name in VIDEO_NAMES:
+        if (Path(run_dir) / name).is_file():
+            return Path(run_dir) / name
+    return None
+
+
+def write_poster(run_dir: Path) -> Path | None:
+    """``poster.png``: the video's frame at ``POSTER_AT`` of its length, shown before the video plays.
+
+    Kept when it is newer than the video; None (and no poster) when the run has no video or
+    its frames cannot be read.
+    """
+    import imageio.v2 as imageio
+
+    from ..configio import atomic_write_bytes
+
+    video = find_video(run_dir)
+    poster = Path(run_dir) / POSTER_NAME
+    if video is None:
+        return None
+    if poster.is_file() and poster.stat().st_mtime >= video.stat().st_mtime:
+        return poster
+    frame = None
+    try:
+        opened: Any = imageio.get_reader(video, "ffmpeg")  # the ffmpeg plugin's reader (typed as the base class)
+        with opened as reader:
+            meta = reader.get_meta_data()
+            n = int(round(float(meta.get("fps") or 0) * float(meta.get("duration") or 0)))
+            index = max(0, int(POSTER_AT * n) - 1)
+            try:
+                frame = reader.get_data(index)
+            except (IndexError, RuntimeError, OSError, ValueError):  # the length was overestimated: the last frame read
+                for last in reader:
+                    frame = last
+    except (OSError, RuntimeError, ValueError, IndexError, StopIteration):
+        return None
+    if frame is None:
+        return None
+    import imageio.v3 as iio
+
+    atomic_write_bytes(poster, iio.imwrite("<bytes>", frame, extension=".png"))
+    return poster
 
 
 def video_section(run_dir: Path) -> str:
     """A ``<video>`` element linking the run's MP4 next to the page (not embedded: see docs/report.md)."""
-    for name in VIDEO_NAMES:
-        path = run_dir / name
-        if path.is_file():
-            size = path.stat().st_size / 1e6
-            note = "" if name == "video.mp4" else " (partial: the run did not complete)"
-            return (f'<video id="video" controls preload="metadata" src="{h.esc(name)}"></video>'
-                    f'<p class="muted">{h.esc(name)}{h.esc(note)}, {size:.1f} MB, next to this page '
-                    "(overview and cut close-up side by side).</p>")
+    path = find_video(run_dir)
+    if path is not None:
+        name = path.name
+        size = path.stat().st_size / 1e6
+        note = "" if name == "video.mp4" else " (partial: the run did not complete)"
+        poster = f' poster="{POSTER_NAME}"' if (run_dir / POSTER_NAME).is_file() else ""
+        return (f'<video id="video" controls preload="metadata"{poster} src="{h.esc(name)}"></video>'
+                f'<p class="muted">{h.esc(name)}{h.esc(note)}, {size:.1f} MB, next to this page '
+                "(overview and cut close-up side by side).</p>")
     return '<p class="muted">No video: run with <code>--video</code> to render one.</p>'
 
 
@@ -192,7 +287,7 @@ def run_page(run_dir: Path) -> str:
     if metrics:
         sections.append(h.section("Key metrics", key_metrics_table(metrics) + tip_error_table(metrics), "key-metrics"))
     order = {name: k for k, name in enumerate(PLOT_ORDER)}
-    plots = sorted(h.plot_files(run_dir), key=lambda p: (order.get(p.name, len(order)), str(p)))
+    plots = sorted((p for p in h.plot_files(run_dir) if p.name != POSTER_NAME), key=lambda p: (order.get(p.name, len(order)), str(p)))
     sections.append(h.section("Plots", h.images(plots, run_dir) if plots else '<p class="muted">No plots.</p>', "plots"))
     sections.append(h.section("Video", video_section(run_dir), "video-section"))
     sections.append(h.section("Parameters", parameters_section(run_dir) or '<p class="muted">No config.toml.</p>', "parameters-section"))
@@ -203,4 +298,4 @@ def run_page(run_dir: Path) -> str:
     if metrics:
         sections.append(h.section("All metrics", h.json_block(metrics, "metrics.json"), "all-metrics"))
     control = metrics.get("control", "?")
-    return h.page(f"Run {run_dir.resolve().name}", f"continuum-sim run folder {run_dir} · control: {control}", sections)
+    return folder_page(run_dir, f"Run {run_dir.resolve().name}", f"continuum-sim run folder {run_dir} · control: {control}", sections)

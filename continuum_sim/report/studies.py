@@ -13,7 +13,8 @@ from pathlib import Path
 from typing import Any
 
 from . import html as h
-from .run import read_json
+from .html import read_json
+from .provenance import folder_page
 
 MAX_TABLE_ROWS = 500  # rows of a CSV summary shown on the page (the file holds them all)
 
@@ -87,9 +88,10 @@ def sweep_page(root: Path) -> str:
     sections.append(h.section("Plots", h.images(plots, root) if plots else '<p class="muted">No plots.</p>', "plots"))
     spec = root / "spec.toml"
     if spec.is_file():
-        sections.append(h.section("Spec", h.preformatted(spec.read_text(), "spec.toml (rerun: continuum-sim sweep spec.toml "
-                                                         f"--out {root})"), "config"))
-    return h.page(f"Sweep {root.resolve().name}", f"continuum-sim sweep results folder {root}", sections)
+        sections.append(h.section("Spec", "<p>Rerun (resumes: variants already recorded are skipped):</p>"
+                                  + h.command(["continuum-sim", "sweep", str(spec), "--out", str(root)])
+                                  + h.preformatted(spec.read_text(), "spec.toml"), "config"))
+    return folder_page(root, f"Sweep {root.resolve().name}", f"continuum-sim sweep results folder {root}", sections)
 
 
 def validation_page(root: Path) -> str:
@@ -109,7 +111,7 @@ def validation_page(root: Path) -> str:
     sections.append(h.section("Plots", h.images(plots, root) if plots else '<p class="muted">No plots.</p>', "plots"))
     if (root / "report.md").is_file():
         sections.append(h.section("report.md", h.preformatted((root / "report.md").read_text(), "report.md"), "config"))
-    return h.page(f"Validation {root.resolve().name}", f"continuum-sim validate report folder {root}", sections)
+    return folder_page(root, f"Validation {root.resolve().name}", f"continuum-sim validate report folder {root}", sections)
 
 
 def identify_page(root: Path) -> str:
@@ -144,7 +146,7 @@ def identify_page(root: Path) -> str:
         sections.append(h.section("identified.toml", h.preformatted((root / "identified.toml").read_text(),
                                                                     "identified.toml (use with --config)"), "config"))
     sections.append(h.section("report.json", h.json_block(report, "report.json"), "all-metrics"))
-    return h.page(f"Identification {root.resolve().name}", f"continuum-sim identify folder {root}", sections)
+    return folder_page(root, f"Identification {root.resolve().name}", f"continuum-sim identify folder {root}", sections)
 
 
 def generic_page(root: Path) -> str:
@@ -173,4 +175,4 @@ def generic_page(root: Path) -> str:
     n_plots = len(plots)
     banner = h.banner(True, f"study folder: {len(list(root.glob('*.json')))} JSON and {len(list(root.glob('*.csv')))} CSV summaries, "
                             f"{n_plots} plots")
-    return h.page(f"Study {root.resolve().name}", f"folder {root}", [banner, *sections])
+    return folder_page(root, f"Study {root.resolve().name}", f"folder {root}", [banner, *sections])

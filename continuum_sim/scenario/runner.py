@@ -300,6 +300,7 @@ def start_run_dir(out_dir: Path, config: ScenarioConfig, root: Any, model: mujoc
     out_dir.mkdir(parents=True, exist_ok=True)
     config.save_toml(out_dir / "config.toml")
     write_parameters(out_dir, config)
+    write_provenance(out_dir, config)
     for name, content in run_model_files(root, model, render_model).items():
         if isinstance(content, bytes):
             atomic_write_bytes(out_dir / "model" / name, content)
@@ -317,6 +318,20 @@ def write_parameters(out_dir: Path, config: ScenarioConfig) -> None:
 
     doc = records(config, ScenarioConfig.default())
     atomic_write_text(out_dir / "parameters.json", json.dumps(doc, indent=1, ensure_ascii=False))
+
+
+def write_provenance(out_dir: Path, config: ScenarioConfig) -> None:
+    """``provenance.json`` (``continuum_sim.provenance``): code, configuration and registry hashes, libraries, machine.
+
+    Nothing in it feeds the simulation; the configuration hash is that of the ``config.toml`` text
+    (written just before).
+    """
+    from .. import provenance
+    from ..params.registry import registry_sha256
+
+    saved = out_dir / "config.toml"
+    text = saved.read_text(encoding="utf-8") if saved.is_file() else provenance.config_toml(config)
+    provenance.record(out_dir, provenance.current_command("run"), config_toml=text, registry_sha256=registry_sha256())
 
 
 def write_run(out_dir: Path, trajectory: Trajectory, metrics: dict[str, Any], plan: TaskPlan,

@@ -1,4 +1,4 @@
-"""Global sensitivity of the task to the assumed plant parameters (issue 24).
+"""Global sensitivity of the task to the assumed plant parameters.
 
 ``load_spec`` validates a study spec; ``run_study`` samples the parameters over their
 registry ranges with SALib (Morris screening, Sobol' indices), evaluates the samples on

@@ -15,11 +15,17 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
     spec = load_spec(args.spec)
     out = Path(args.out) if args.out else Path("runs/sensitivity") / Path(args.spec).stem
     check_output_dir(out, create=False)
-    result = run_study(spec, out, workers=args.workers, backend=args.backend, address=args.address, progress=not args.quiet)
+    result = run_study(spec, out, workers=args.workers, backend=args.backend, address=args.address, progress=not args.quiet,
+                       spec_path=args.spec)
     summary = result.summary
     print(f"{result.root}: {spec.method}, {result.n_distinct} samples ({result.n_skipped} already recorded, "
           f"{result.n_run} run, {result.n_failed} failed); CPU {summary['cpu_s_total']:.0f} s")
-    if not args.quiet:
+    if not args.quiet and spec.method == "uncertainty":
+        a = summary["analysis"]["uncertainty"]
+        interval = " – ".join(f"{v:.2f}" for v in a["interval_95"]) if a["interval_95"] else "none"
+        print(f"  success ({' and '.join(a['criterion'])}): {a['successes']}/{a['recorded']}, 95 % interval {interval}")
+        print(f"  outcomes: {', '.join(f'{why} {n}' for why, n in a['failures'].items()) or 'all succeeded'}; report: summary.md")
+    elif not args.quiet:
         key = "mu_star" if spec.method == "morris" else "ST"
         for metric, analysis in summary["analysis"].items():
             indices = analysis.get("indices")

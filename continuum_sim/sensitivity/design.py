@@ -33,6 +33,10 @@ def sample_matrix(spec: SensitivitySpec) -> np.ndarray:
 
         return np.asarray(morris.sample(problem(spec), spec.morris.trajectories, num_levels=spec.morris.levels,
                                         seed=spec.morris.seed), dtype=float)
+    if spec.method == "uncertainty":
+        from SALib.sample import latin
+
+        return np.asarray(latin.sample(problem(spec), spec.uncertainty.samples, seed=spec.uncertainty.seed), dtype=float)
     from SALib.sample import sobol
 
     with warnings.catch_warnings():  # SALib warns about N not a power of 2 only; the spec enforces it

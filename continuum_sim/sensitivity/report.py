@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from ..configio import atomic_write_figure, atomic_write_text
+from . import uncertainty
 from .design import analyze_morris, analyze_sobol, outputs, sample_matrix, strength
 from .spec import OUTCOME_METRIC, SensitivitySpec
 
@@ -57,20 +58,27 @@ def write_report(spec: SensitivitySpec, row_ids: list[str], records: dict[str, d
     atomic_write_text(root / "samples.csv", _csv(header, table))
 
     analyses: dict[str, dict[str, Any]] = {}
-    for metric in spec.metrics:
+    if spec.method == "uncertainty":
+        analyses["uncertainty"] = uncertainty.analyze(spec, values, rows)
+        ranking = uncertainty.strength(spec, analyses["uncertainty"])
+        halves = analyses["uncertainty"]["success_by_half_range"]
+        index_rows = [["success", p, halves[p]["lower"]["success"], halves[p]["upper"]["success"], ranking[p]] for p in spec.paths]
+        atomic_write_text(root / "indices.csv", _csv(["metric", "parameter", "success_lower_half", "success_upper_half", "difference"],
+                                                     index_rows))
+    for metric in spec.metrics if spec.method != "uncertainty" else ():
         y = outputs(rows, metric)
         analysis = analyze_morris(spec, matrix, y) if spec.method == "morris" else analyze_sobol(spec, y)
         finite = y[np.isfinite(y)]
         analysis["range"] = [float(finite.min()), float(finite.max())] if finite.size else None
         analyses[metric] = analysis
-    keys = ["mu", "mu_star", "sigma", "mu_star_conf"] if spec.method == "morris" else ["S1", "S1_conf", "ST", "ST_conf"]
-    index_rows = [
-        [metric, path, *[a["indices"][path][k] for k in keys]]
-        for metric, a in analyses.items() if a.get("indices") for path in spec.paths
-    ]
-    atomic_write_text(root / "indices.csv", _csv(["metric", "parameter", *keys], index_rows))
-
-    ranking = strength(spec, analyses)
+    if spec.method != "uncertainty":
+        keys = ["mu", "mu_star", "sigma", "mu_star_conf"] if spec.method == "morris" else ["S1", "S1_conf", "ST", "ST_conf"]
+        index_rows = [
+            [metric, path, *[a["indices"][path][k] for k in keys]]
+            for metric, a in analyses.items() if a.get("indices") for path in spec.paths
+        ]
+        atomic_write_text(root / "indices.csv", _csv(["metric", "parameter", *keys], index_rows))
+        ranking = strength(spec, analyses)
     ranked = sorted(spec.paths, key=lambda p: -ranking[p])
     done = [r for r in rows if r is not None]
     distinct = {vid: records[vid] for vid in set(row_ids) if vid in records}
@@ -92,13 +100,15 @@ def write_report(spec: SensitivitySpec, row_ids: list[str], records: dict[str, d
         "analysis": analyses,
         "strength": {p: ranking[p] for p in ranked},
         "strongest": ranked[:2],
-        "files": ["samples.csv", "indices.csv", "summary.json", "summary.md", "plots/indices.png", "plots/outcome_map.png"],
+        "files": ["samples.csv", "indices.csv", "summary.json", "summary.md",
+                  *(["plots/indices.png"] if spec.method != "uncertainty" else []), "plots/outcome_map.png"],
     }
     atomic_write_text(root / "summary.json", json.dumps(summary, indent=1, allow_nan=False, ensure_ascii=False))
     atomic_write_text(root / "summary.md", summary_markdown(summary))
     plots = root / "plots"
     plots.mkdir(exist_ok=True)
-    _plot_indices(spec, analyses, ranked, plots / "indices.png")
+    if spec.method != "uncertainty":
+        _plot_indices(spec, analyses, ranked, plots / "indices.png")
     if len(spec.factors) >= 2:
         _plot_outcome_map(spec, values, rows, ranked[:2], plots / "outcome_map.png")
     return summary
@@ -106,6 +116,8 @@ def write_report(spec: SensitivitySpec, row_ids: list[str], records: dict[str, d
 
 def summary_markdown(summary: dict[str, Any]) -> str:
     """The study's indices as markdown tables: one row per parameter (strongest first), one column per metric."""
+    if summary["method"] == "uncertainty":
+        return uncertainty.markdown(summary)
     morris = summary["method"] == "morris"
     metrics = summary["metrics"]
     lines = [
@@ -158,14 +170,15 @@ def _plot_indices(spec: SensitivitySpec, analyses: dict[str, dict[str, Any]], ra
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    n = len(spec.metrics)
+    metrics = [m for m in spec.metrics if m != uncertainty.FAILURE]  # a name, not a number
+    n = len(metrics)
     cols = min(n, 3)
     grid_rows = math.ceil(n / cols)
     fig, axes = plt.subplots(grid_rows, cols, figsize=(5.0 * cols, 0.45 * len(ranked) * grid_rows + 1.6 * grid_rows),
                              squeeze=False)
     order = list(reversed(ranked))  # strongest on top
     y = np.arange(len(order))
-    for ax, metric in zip(axes.flat, spec.metrics):
+    for ax, metric in zip(axes.flat, metrics):
         indices = analyses[metric].get("indices")
         ax.set_title(metric, fontsize=9)
         ax.set_yticks(y, [_short(p) for p in order], fontsize=7)
@@ -209,11 +222,12 @@ def _plot_outcome_map(spec: SensitivitySpec, values: np.ndarray, rows: list[dict
             xy[:, c] = xy[:, c] * 10.0**shift if factor.log else xy[:, c] + shift
     completed = outputs(rows, OUTCOME_METRIC)
     recorded = np.array([r is not None for r in rows])
-    n = len(spec.metrics)
+    metrics = [m for m in spec.metrics if m != uncertainty.FAILURE]  # a name, not a number
+    n = len(metrics)
     cols = min(n, 3)
     grid_rows = math.ceil(n / cols)
     fig, axes = plt.subplots(grid_rows, cols, figsize=(4.6 * cols, 3.8 * grid_rows), squeeze=False)
-    for ax, metric in zip(axes.flat, spec.metrics):
+    for ax, metric in zip(axes.flat, metrics):
         y = outputs(rows, metric)
         ok = recorded & np.isfinite(y)
         points = ax.scatter(xy[ok, 0], xy[ok, 1], c=y[ok], cmap="viridis", s=70, edgecolors="k", linewidths=0.3)

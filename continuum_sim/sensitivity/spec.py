@@ -3,7 +3,7 @@
 A spec is a TOML file::
 
     base = "my_scenario.toml"          # optional, relative to the spec file
-    method = "morris"                  # morris (screening) | sobol (variance shares)
+    method = "morris"                  # morris (screening) | sobol (variance shares) | uncertainty (success probability)
     parameters = ["model.cable_friction.mu", "scene.tools.gripper_preload"]   # registry paths
     metrics = ["task.completed", "cut_path_deviation_mm.mean"]               # optional
 
@@ -23,6 +23,13 @@ A spec is a TOML file::
     second_order = false
     seed = 0
 
+    [uncertainty]                      # Latin hypercube points, seed (uncertainty.py)
+    samples = 64
+    seed = 0
+
+    [success]                          # uncertainty: what counts as success besides the task completing
+    "cut_path_deviation_mm.mean" = {max = 2.5}
+
     [evaluation]                       # as in a sweep spec: scenario | stage | gravity_sag | tip_deflection
     kind = "scenario"
 
@@ -40,13 +47,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..configio import ConfigError, parse_toml_text, read_config_text, require_int, to_dict
+from ..configio import ConfigError, get_path, parse_toml_text, read_config_text, require_int, to_dict
 from ..params.registry import parameter
 from ..scenario.config import ScenarioConfig
 from ..sweep.evaluations import Evaluation, parse_evaluation
 from ..sweep.spec import check_keys, spec_base
+from .success import COMPLETED, FAILURE, Bound, UncertaintyOptions, parse_success
 
-METHODS = ("morris", "sobol")
+METHODS = ("morris", "sobol", "uncertainty")
 # The task outcome and the metrics the issue names (metrics.json, flattened with dots).
 DEFAULT_METRICS = (
     "task.completed",  # 1 = the task completed, 0 = not (a failed evaluation counts as 0)
@@ -67,16 +75,17 @@ class Factor:
     low: float
     high: float
     log: bool
+    integer: bool = False  # the config field is an integer (a segment count): samples round to it
 
     @property
     def bounds(self) -> tuple[float, float]:
         """The bounds in sampling space (log10 of the range for a log factor)."""
         return (math.log10(self.low), math.log10(self.high)) if self.log else (self.low, self.high)
 
-    def value(self, u: float) -> float:
+    def value(self, u: float) -> float | int:
         """A sampling-space coordinate as the parameter's value (12 significant digits: stable ids)."""
-        v = 10.0**u if self.log else u
-        return float(f"{min(max(v, self.low), self.high):.12g}")
+        v = min(max(10.0**u if self.log else u, self.low), self.high)
+        return int(round(v)) if self.integer else float(f"{v:.12g}")
 
 
 @dataclass(frozen=True)
@@ -119,6 +128,8 @@ class SensitivitySpec:
     sobol: SobolOptions = field(default_factory=SobolOptions)
     base_path: str | None = None
     source_text: str = ""
+    uncertainty: UncertaintyOptions = field(default_factory=UncertaintyOptions)
+    success: tuple[Bound, ...] = ()
 
     @property
     def paths(self) -> tuple[str, ...]:
@@ -126,13 +137,16 @@ class SensitivitySpec:
 
     def design(self) -> dict[str, Any]:
         """What fixes the samples: the study's identity beside the base config and the evaluation."""
-        options = to_dict(self.morris if self.method == "morris" else self.sobol)
-        return {
+        options = to_dict({"morris": self.morris, "sobol": self.sobol, "uncertainty": self.uncertainty}[self.method])
+        design = {
             "method": self.method,
             "factors": [[f.path, f.low, f.high, f.log] for f in self.factors],
             "options": options,
             "salib": _salib_version(),
         }
+        if self.method == "uncertainty":
+            design["success"] = [[b.metric, b.low, b.high] for b in self.success]
+        return design
 
 
 def _salib_version() -> str:
@@ -145,7 +159,7 @@ def _salib_version() -> str:
     return version.split(".")[0]  # the sampler's major version: a new one may draw other samples
 
 
-def _factor(path: Any, ranges: dict[str, Any], where: str) -> Factor:
+def _factor(path: Any, ranges: dict[str, Any], where: str, base: ScenarioConfig) -> Factor:
     if not isinstance(path, str) or not path:
         raise ConfigError(where, f"must be a registry parameter path (got {path!r})")
     try:
@@ -169,12 +183,13 @@ def _factor(path: Any, ranges: dict[str, Any], where: str) -> Factor:
         raise ConfigError(f"ranges.{path}", f"must satisfy low < high (got [{low:g}, {high:g}])")
     if entry.log and low <= 0.0:
         raise ConfigError(f"ranges.{path}", f"is sampled logarithmically: low must be > 0 (got {low:g})")
-    return Factor(path, float(low), float(high), entry.log)
+    current = get_path(base, path)
+    return Factor(path, float(low), float(high), entry.log, isinstance(current, int) and not isinstance(current, bool))
 
 
 def parse_spec(data: dict[str, Any], spec_dir: str | os.PathLike[str] | None = None, source_text: str = "") -> SensitivitySpec:
     """Validate a spec dict (as read from TOML) into a ``SensitivitySpec``; ``ConfigError`` if bad."""
-    allowed = ("base", "method", "parameters", "metrics", "ranges", "config", "morris", "sobol", "evaluation")
+    allowed = ("base", "method", "parameters", "metrics", "ranges", "config", "morris", "sobol", "uncertainty", "success", "evaluation")
     check_keys(data, allowed)
     base, base_path = spec_base(data, spec_dir, with_settings=True)
 
@@ -190,7 +205,7 @@ def parse_spec(data: dict[str, Any], spec_dir: str | os.PathLike[str] | None = N
     for path in ranges:
         if path not in names:
             raise ConfigError(f"ranges.{path}", "is not among the study's parameters")
-    factors = tuple(_factor(p, ranges, f"parameters[{i}]") for i, p in enumerate(names))
+    factors = tuple(_factor(p, ranges, f"parameters[{i}]", base) for i, p in enumerate(names))
     if len({f.path for f in factors}) != len(factors):
         raise ConfigError("parameters", "a parameter is listed twice")
     if method == "sobol" and len(factors) < 2:
@@ -205,6 +220,10 @@ def parse_spec(data: dict[str, Any], spec_dir: str | os.PathLike[str] | None = N
         return from_dict(cls, raw, prefix=key)
 
     morris, sobol = options(MorrisOptions, "morris"), options(SobolOptions, "sobol")
+    uncertainty = options(UncertaintyOptions, "uncertainty")
+    success = parse_success(data.get("success"))
+    if success and method != "uncertainty":
+        raise ConfigError("success", "only applies to method = \"uncertainty\"")
 
     evaluation = parse_evaluation(data.get("evaluation", {"kind": "scenario"}))
     metrics_raw = data.get("metrics")
@@ -222,7 +241,16 @@ def parse_spec(data: dict[str, Any], spec_dir: str | os.PathLike[str] | None = N
         if len(set(metrics_raw)) != len(metrics_raw):
             raise ConfigError("metrics", "a metric is listed twice")
         metrics = tuple(metrics_raw)
-    spec = SensitivitySpec(base, factors, method, evaluation, metrics, morris, sobol, base_path, source_text)
+    if method == "uncertainty":
+        if evaluation.static:
+            raise ConfigError("evaluation.kind", "the uncertainty method needs a task evaluation (scenario or stage)")
+        known = evaluation.known_metrics()
+        for bound in success:
+            if known is not None and bound.metric not in known:
+                raise ConfigError(f"success.{bound.metric}", f"unknown metric for {evaluation.kind}; known: {', '.join(known)}")
+        wanted = [COMPLETED, FAILURE, *[b.metric for b in success]]
+        metrics = tuple(dict.fromkeys([*wanted, *metrics]))
+    spec = SensitivitySpec(base, factors, method, evaluation, metrics, morris, sobol, base_path, source_text, uncertainty, success)
     n = n_evaluations(spec)
     if n > MAX_EVALUATIONS:
         raise ConfigError(method, f"{n} evaluations is more than the limit of {MAX_EVALUATIONS}")
@@ -234,6 +262,8 @@ def n_evaluations(spec: SensitivitySpec) -> int:
     k = len(spec.factors)
     if spec.method == "morris":
         return spec.morris.trajectories * (k + 1)
+    if spec.method == "uncertainty":
+        return spec.uncertainty.samples
     return spec.sobol.samples * (2 * k + 2 if spec.sobol.second_order else k + 2)
 
 

@@ -19,7 +19,7 @@ from ..configio import ConfigError, set_path, to_dict
 from ..sweep import backends
 from ..sweep.runner import preflight
 from ..sweep.spec import SweepSpec, Variant, variant_id
-from ..sweep.store import ResultStore
+from ..sweep.store import ResultStore, write_provenance
 from .design import sample_matrix, sample_params
 from .spec import SensitivitySpec
 
@@ -98,8 +98,12 @@ def run_study(
     backend: Backend = "local",
     address: str | None = None,
     progress: bool = True,
+    spec_path: str | os.PathLike[str] | None = None,
 ) -> StudyResult:
-    """Evaluate every sample of ``spec`` not yet recorded under ``out``, then analyse and report; resumable."""
+    """Evaluate every sample of ``spec`` not yet recorded under ``out``, then analyse and report; resumable.
+
+    ``spec_path``: the spec file, hashed into ``provenance.json`` (written at the start and at the end).
+    """
     from tqdm import tqdm
 
     from .report import write_report
@@ -114,6 +118,7 @@ def run_study(
     store = ResultStore(out)
     with store.lock():
         store.prepare(sweep)
+        write_provenance(store.root, "sensitivity", spec, spec_path)
         wanted = {v.variant_id for v in sweep.samples}
         records = {k: r for k, r in store.load().items() if k in wanted}
         pending = [v for v in sweep.samples if v.variant_id not in records]
@@ -139,5 +144,6 @@ def run_study(
         finally:
             bar.close()
         summary = write_report(spec, row_ids, records, store.root)
+        write_provenance(store.root, "sensitivity", spec, spec_path)
     n_failed = sum(1 for r in records.values() if r["status"] != "ok")
     return StudyResult(store.root, len(row_ids), len(sweep.samples), n_skipped, len(pending), n_failed, summary)

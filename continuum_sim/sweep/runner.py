@@ -11,7 +11,7 @@ from ..configio import ConfigError
 from . import backends
 from .report import write_plots, write_table
 from .spec import SweepSpec, Variant
-from .store import ResultStore
+from .store import ResultStore, write_provenance
 
 Backend = Literal["local", "ray"]
 Batch = Literal["auto", "on", "off"]
@@ -67,8 +67,12 @@ def run_sweep(
     batch: Batch = "auto",
     retry_failed: bool = False,
     progress: bool = True,
+    spec_path: str | os.PathLike[str] | None = None,
 ) -> SweepResult:
-    """Evaluate every variant of ``spec`` not yet recorded under ``out``; resumable."""
+    """Evaluate every variant of ``spec`` not yet recorded under ``out``; resumable.
+
+    ``spec_path``: the spec file, hashed into ``provenance.json`` (written at the start and at the end).
+    """
     from tqdm import tqdm
 
     if address is not None and backend != "ray":
@@ -80,6 +84,7 @@ def run_sweep(
     store = ResultStore(out)
     with store.lock():
         store.prepare(spec)
+        write_provenance(store.root, "sweep", spec, spec_path)
         records = store.load()
         variants = spec.variants(progress=progress)
         wanted = {v.variant_id for v in variants}
@@ -116,5 +121,6 @@ def run_sweep(
             bar.close()
         tables = write_table(spec, records, store.root)
         plots = write_plots(spec, records, store.root)
+        write_provenance(store.root, "sweep", spec, spec_path)
     n_failed = sum(1 for r in records.values() if r["status"] != "ok")
     return SweepResult(store.root, len(variants), n_skipped, len(pending), n_failed, mode, tuple(tables), tuple(plots), records)

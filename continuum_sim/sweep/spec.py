@@ -34,7 +34,7 @@ from typing import Any, get_type_hints
 
 import numpy as np
 
-from ..configio import ConfigError, from_dict, get_path, parse_toml_text, read_config_text, replace_path, to_dict
+from ..configio import ConfigError, from_dict, get_path, migration_note, parse_toml_text, read_config_text, replace_path, to_dict, unknown_path_error
 from ..scenario.config import ScenarioConfig, merged
 from .evaluations import Evaluation, parse_evaluation
 
@@ -194,7 +194,9 @@ def _lookup(base: ScenarioConfig, path: str) -> Any:
     try:
         return get_path(base, path)
     except ConfigError:
-        pass
+        note = migration_note(path)
+        if note is not None:  # a removed or renamed field: say what replaces it
+            raise ConfigError(f"grid.{path}", note) from None
     node: Any = to_dict(base)
     parts = path.split(".")
     for i, part in enumerate(parts):
@@ -218,7 +220,7 @@ def check_keys(data: dict[str, Any], allowed: tuple[str, ...]) -> None:
     """A study spec's top-level keys: each one of ``allowed`` (sweep, sensitivity and optimize specs)."""
     for key in data:
         if key not in allowed:
-            raise ConfigError(key, f"unknown key; allowed keys are {', '.join(allowed)}")
+            raise unknown_path_error(key, f"unknown key; allowed keys are {', '.join(allowed)}")
 
 
 def spec_base(data: dict[str, Any], spec_dir: str | os.PathLike[str] | None,

@@ -7,6 +7,7 @@ Layout::
     <out>/records/<id>.json one per finished variant, written atomically
     <out>/results.csv       rebuilt from the records in grid order (+ .parquet)
     <out>/plots/            each metric against each swept parameter
+    <out>/provenance.json   code, configuration and spec hashes, libraries, machine (``write_provenance``)
 
 A record is written (temp file + ``os.replace``) only once its variant has finished, so
 a killed sweep leaves whole records or none, and resuming skips exactly the variants
@@ -30,6 +31,23 @@ from ..configio import ConfigError, atomic_write_text
 from .spec import SweepSpec, Variant
 
 FORMAT_VERSION = 1
+
+
+def write_provenance(root: str | os.PathLike[str], command: str, spec: Any, spec_path: str | os.PathLike[str] | None) -> None:
+    """``root/provenance.json`` of a study (sweep, sensitivity, optimisation): written at its start and again at its end.
+
+    ``spec``: any spec with a ``base`` ScenarioConfig and its ``source_text``; ``spec_path``: the spec
+    file (its bytes are hashed); without one, the hash is that of the spec text the study was read from.
+    """
+    from .. import provenance
+    from ..params.registry import registry_sha256
+
+    doc = provenance.collect(provenance.current_command(command), config_toml=provenance.config_toml(spec.base),
+                             registry_sha256=registry_sha256(), spec_path=None if spec_path is None else Path(spec_path))
+    source = getattr(spec, "source_text", "")
+    if spec_path is None and source:
+        doc["hashes"]["spec"] = provenance.sha256_text(source)
+    provenance.write(Path(root), doc)
 
 
 def _finite(value: Any) -> Any:

@@ -32,6 +32,15 @@ def _out_dir(path: str, option: str = "--out") -> Path:
     return out
 
 
+def _provenance(out: Path, command: str, config, data: str | None) -> None:
+    """``out/provenance.json``: the configuration and the recording (``hashes.spec``: the data file's bytes) hashed."""
+    from .. import provenance
+    from ..params.registry import registry_sha256
+
+    provenance.record(out, provenance.current_command(command), config_toml=provenance.config_toml(config),
+                      registry_sha256=registry_sha256(), spec_path=None if not data else Path(data))
+
+
 def _recording(args: argparse.Namespace, config):
     from .data import read_recording
 
@@ -69,6 +78,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     config = _config(args.config)
     rec = _recording(args, config)
     out = _out_dir(args.out)
+    _provenance(out, "replay", config, args.data)
     metrics = run_replay(config, rec, out)
     summary = {
         "samples": metrics["samples"],
@@ -155,6 +165,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     if len(set(paths)) != len(paths):
         raise ConfigError("--fit", "a path is given twice")
     out = _out_dir(args.out)
+    _provenance(out, "identify", config, args.data)  # at the start: a killed fit's folder says what it was
     result = identify(config, rec, params, nthread=args.workers, orientation_weight=args.orientation_weight,
                       max_nfev=args.max_nfev, progress=not args.quiet, stride=args.stride, starts=args.starts,
                       seed=args.seed)
@@ -165,6 +176,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     r = result.report
     r["strict"] = bool(args.strict)
     write_identify_folder(out, result, rec, args.config)
+    _provenance(out, "identify", config, args.data)
     print(json.dumps({
         "parameters": r["parameters"],
         "ci95": {p: d["ci95"] for p, d in r["details"].items()},

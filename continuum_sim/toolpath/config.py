@@ -34,12 +34,12 @@ class PlanConfig:
     lead_in: float = 0.012  # m: the cut starts this far outside the front edge (> kerf_width/2)
     lead_out: float = 0.020  # m: and ends this far beyond the side edge, where the grinder waits while the sample is carried off
     approach_length: float = 0.020  # m: horizontal approach toward the front edge before the cut start
-    # m: the gripper backs off this far from the grasp pose before the grasp (0.035 before issue 24;
+    # m: the gripper backs off this far from the grasp pose before the grasp (formerly 0.035;
     # in the plate plane 35 mm leave 2.2 mm of planned pad clearance at the transfer's end, 50 mm 14.6 mm)
     pregrasp_distance: float = 0.050
     # Direction of that back-off (and so of the straight grasp move): "plate_plane" = the tool
     # axis projected onto the plate's plane, so the open jaws slide in level with the plate
-    # faces, their clearance constant; "tool_axis" = along the tilted tool axis (before issue 24:
+    # faces, their clearance constant; "tool_axis" = along the tilted tool axis (the former default:
     # the pads crossed the plate faces obliquely, and the joint transfer ending there drove a
     # pad 1.7 mm into the sample edge, docs/calibration.md "The gripper knock").
     pregrasp_direction: Literal["plate_plane", "tool_axis"] = "plate_plane"

@@ -128,7 +128,7 @@ def validation_checks() -> list[Any]:
     """The capstan rows of ``continuum-sim validate``: μ 0.15 in --quick, 0.1/0.15/0.2 in the full run."""
     from .report import Check, row
 
-    reference = "capstan relation T_anchor/T_motor = e^(−μθ) (cable friction, issue 13)"
+    reference = "capstan relation T_anchor/T_motor = e^(−μθ) (cable friction)"
 
     def run(quick: bool) -> list[Any]:
         shared = rig()

@@ -214,6 +214,6 @@ def validation_checks() -> list[Any]:
                                 f"(linear: {100 * (linear / exact - 1):+.1f} %)", 100 * (plant / exact - 1), 3.0, "%", "+.2f"))
         return rows
 
-    reference = "geometrically nonlinear flexure segment (issue 24)"
+    reference = "geometrically nonlinear flexure segment"
     return [Check("flexure.limits", reference + ": the rod solver vs textbook limits", limits),
             Check("flexure.nonlinear", reference + ": plant curve vs the solver", plant_curve)]
