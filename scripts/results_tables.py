@@ -4,6 +4,7 @@
     python scripts/results_tables.py experiment       # docs/plant.md: the paper's experiment, both loops
     python scripts/results_tables.py paper-result     # docs/calibration.md: P(paper's result) over the ranges
     python scripts/results_tables.py paper-outcomes   # docs/calibration.md: how the other samples ended
+    python scripts/results_tables.py table FILE.md [N] # the N-th table (default 1st) of a published .md output
 
 Each prints one Markdown block (no blank line) that a ``check-block`` marker in the docs compares
 with the page (``scripts/check_docs.py``; ``--fix`` rewrites the page from it).
@@ -119,12 +120,28 @@ def paper_outcomes() -> list[str]:
     return rows
 
 
+def md_table(path: str, index: str = "1") -> list[str]:
+    """The ``index``-th (1-based) Markdown table of a published ``.md`` output, as it stands."""
+    lines = (ROOT / path).read_text().splitlines()
+    tables, current = [], []
+    for line in [*lines, ""]:
+        if line.lstrip().startswith("|"):
+            current.append(line)
+        elif current:
+            tables.append(current)
+            current = []
+    return tables[int(index) - 1]
+
+
 TABLES = {"default-runs": default_runs, "experiment": experiment, "paper-result": paper_result, "paper-outcomes": paper_outcomes}
 
 
 def main(argv: list[str]) -> int:
+    if argv[:1] == ["table"] and len(argv) in (2, 3):
+        print("\n".join(md_table(*argv[1:])))
+        return 0
     if len(argv) != 1 or argv[0] not in TABLES:
-        print(f"usage: python scripts/results_tables.py {{{'|'.join(TABLES)}}}", file=sys.stderr)
+        print(f"usage: python scripts/results_tables.py {{{'|'.join(TABLES)}}} | table FILE.md [N]", file=sys.stderr)
         return 2
     print("\n".join(TABLES[argv[0]]()))
     return 0
