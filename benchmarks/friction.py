@@ -1,6 +1,6 @@
 """Cable friction: per-step CPU cost, kernel compile cost, capstan check and the hysteresis loop.
 
-Prints JSON and writes ``docs/friction_hysteresis.png`` (``--plot``). Everything is CPU
+Prints JSON and writes the hysteresis figure (``--plot``). Everything is CPU
 time (``time.process_time``), single process:
 
 * ``step``: the scenario's dual-arm scene (its model options), both arms bent and held by
@@ -15,7 +15,12 @@ time (``time.process_time``), single process:
 * ``scenario``: the whole default task with μ = 0 and the default μ: CPU time (closed loop,
   repeated, interleaved) and the task metrics, closed and open loop (~1–2 min CPU).
 
-    python benchmarks/friction.py [--skip step compile capstan hysteresis scenario] [--plot docs/friction_hysteresis.png]
+    python benchmarks/friction.py [--skip step compile capstan hysteresis scenario] [--plot docs/friction/hysteresis.png]
+        [--json docs/friction/friction.json] [--md docs/friction/friction.md]
+
+``--json`` also writes the printed JSON to a file (with ``hysteresis.summary``: the bends at the
+staircase's middle level, loading and unloading, and either side of the top reversal, with and
+without friction); ``--md`` writes the capstan table (docs/friction.md quotes both).
 """
 
 from __future__ import annotations
@@ -49,7 +54,7 @@ from continuum_sim.validation.capstan import wrap_angle as _wrap
 POSES = {"left": np.radians([30, 180, 25, 150, 20, 210]), "right": np.radians([30, 0, 25, 30, 20, 330])}
 PRETENSION = 10.0  # N
 CABLE = "arm/cable_0_0"
-HYSTERESIS_MU = 0.15  # the loop plotted in docs/friction_hysteresis.png (printed-polymer holes)
+HYSTERESIS_MU = 0.15  # the loop plotted in docs/friction/hysteresis.png (printed-polymer holes)
 
 
 # ----------------------------------------------------------------------------- step cost
@@ -195,6 +200,29 @@ def hysteresis(levels: int, hold: int) -> dict:
     return out
 
 
+def hysteresis_summary(loops: dict, levels: int) -> dict:
+    """The bends the page quotes: at the middle level going up and coming down, and at the top
+    level and the first level below it (the reversal), for μ = 0 and ``HYSTERESIS_MU``."""
+    T = next(iter(loops.values()))[0]
+    mid, top = levels // 2, levels
+    out: dict = {"mu": HYSTERESIS_MU, "mid_tension_n": round(float(T[mid]), 2), "top_tension_n": round(float(T[top]), 2),
+                 "after_top_tension_n": round(float(T[top + 1]), 2)}
+    for name, mu in (("frictionless", 0.0), ("friction", HYSTERESIS_MU)):
+        bend = loops[mu][1]
+        out[name] = {"mid_loading_deg": round(float(bend[mid]), 1), "mid_unloading_deg": round(float(bend[2 * levels - mid]), 1),
+                     "top_deg": round(float(bend[top]), 1), "after_top_deg": round(float(bend[top + 1]), 1)}
+    return out
+
+
+def capstan_table(rows: list[dict]) -> str:
+    """The capstan check as a Markdown table (docs/friction.md)."""
+    lines = ["| μ | motor T (N) | wrap | T_anchor/T_motor (model) | e^(−μθ) | error |", "|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['mu']:g} | {r['motor_tension_n']:.2f} | {r['wrap_deg']:.2f}° | {r['anchor_over_motor']:.4f} | "
+                     f"{r['capstan_exp_minus_mu_theta']:.4g} | {r['error_percent']:+.2f} % |".replace("+-", "−").replace("| -", "| −"))
+    return "\n".join(lines)
+
+
 def plot(loops: dict, path: Path) -> None:
     import matplotlib
 
@@ -261,6 +289,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--plot", type=Path, default=None)
     parser.add_argument("--skip", nargs="*", default=[], choices=["step", "compile", "capstan", "hysteresis", "scenario"])
     parser.add_argument("--scenario-repeats", type=int, default=2, help="closed-loop whole-task runs per μ (CPU time)")
+    parser.add_argument("--json", type=Path, default=None, help="also write the JSON here")
+    parser.add_argument("--md", type=Path, default=None, help="write the capstan table (Markdown) here")
     args = parser.parse_args(argv)
     out: dict = {"default_mu": DEFAULT_MU, "presliding_m": DEFAULT_PRESLIDING, "load_average": os.getloadavg()}
     if "compile" not in args.skip:
@@ -274,11 +304,17 @@ def main(argv: list[str] | None = None) -> int:
         out["hysteresis"] = {
             str(mu): {"tension_n": [round(t, 2) for t in T], "bend_deg": [round(b, 2) for b in bend]} for mu, (T, bend) in loops.items()
         }
+        out["hysteresis"]["summary"] = hysteresis_summary(loops, args.levels)
         if args.plot is not None:
             plot(loops, args.plot)
     if "scenario" not in args.skip:
         out["scenario"] = scenario_runs(args.scenario_repeats)
-    print(json.dumps(out, indent=2))
+    text = json.dumps(out, indent=2)
+    print(text)
+    for path, body in ((args.json, text), (args.md, capstan_table(out["capstan"]) if "capstan" in out else None)):
+        if path is not None and body is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(body + "\n")
     return 0
 
 

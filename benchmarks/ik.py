@@ -14,8 +14,8 @@ Each solver runs its own passes (warm chain, then cold), as in use; CPU times
 and the goals are judged on CPU time.
 
 Run from the repository root:
-    python benchmarks/ik.py [--points 200] [--orientation full|axis] [--accuracy 200]
-Prints one JSON object. Timings are per point, medians, in milliseconds.
+    python benchmarks/ik.py [--points 200] [--orientation full|axis] [--accuracy 200] [--out FILE.json]
+Prints one JSON object (and writes it to ``--out``). Timings are per point, medians, in milliseconds.
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ import math
 import os
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy.optimize import minimize
@@ -238,11 +239,16 @@ def main() -> None:
     parser.add_argument("--skip-baseline", action="store_true", help="time this solver only")
     parser.add_argument("--accuracy", type=int, default=0, metavar="N",
                         help="also solve N random FK poses cold in each of the four modes")
+    parser.add_argument("--out", type=Path, help="also write the JSON object to this file")
     args = parser.parse_args()
     result = run(args.points, args.orientation, args.seed, args.baseline_cold_starts, args.skip_baseline)
     if args.accuracy:
         result["accuracy_random_poses"] = accuracy(args.accuracy, args.seed)
-    print(json.dumps(result, indent=2))
+    text = json.dumps(result, indent=2)
+    print(text)
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(text + "\n")
 
 
 if __name__ == "__main__":

@@ -17,7 +17,9 @@ printed with the result.
   beside ``default`` (the native cable path): ``fast_vs_plain_cable_path`` gives their CPU
   ratio and how far their task metrics are apart (the paths agree to round-off per step,
   so the metrics agree to ~1e-10 relative, not bit for bit).
-* ``bare_mj_step``: plain ``mj_step`` of the same scene for the same simulated time (both paths).
+* ``bare_mj_step``: plain ``mj_step`` of the same scene for the same simulated time (both paths);
+  ``run_vs_bare_mj_step`` is the default run's speed over bare ``mj_step``'s (bare CPU s / run CPU s),
+  a ratio that depends less on the machine than either figure. ``machine.cpu_model`` names the CPU.
 * ``video`` (``--frames N``, 0 skips it): the run's ``VideoRecorder`` (parallel render
   workers, drawing a mid-cut kerf's voxels and the overlay as a run's video does; and
   without them, ``recorder_plain``) against a bare in-process ``mujoco.Renderer`` rendering
@@ -48,6 +50,7 @@ import mujoco  # noqa: E402
 
 from continuum_sim.configio import replace_path  # noqa: E402
 from continuum_sim.plant.cable_path import make_data  # noqa: E402
+from continuum_sim.provenance import _cpu_model  # noqa: E402
 from continuum_sim.scenario.config import ScenarioConfig  # noqa: E402
 from continuum_sim.scenario.metrics import WALL_CLOCK_METRICS  # noqa: E402
 from continuum_sim.scenario.runner import build_run_model, build_scene_model, run_scenario  # noqa: E402
@@ -222,7 +225,8 @@ def main() -> None:
         load = os.getloadavg()
         video = video_comparison(ScenarioConfig.default(), args.frames)
         text = json.dumps({"measured": time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime()),
-                           "machine": {"cpus": os.cpu_count(), "load_avg_1_5_15_before": [round(x, 2) for x in load],
+                           "machine": {"cpu_model": _cpu_model(), "cpus": os.cpu_count(),
+                                       "load_avg_1_5_15_before": [round(x, 2) for x in load],
                                        "load_avg_1_5_15_after": [round(x, 2) for x in os.getloadavg()]},
                            "video": video}, indent=2)
         print(text)
@@ -269,7 +273,8 @@ def main() -> None:
     bare_plain = bare_stepping(plain_model, scenario["default"]["sim_seconds"])
     out: dict[str, Any] = {
         "measured": time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime()),
-        "machine": {"cpus": os.cpu_count(), "load_avg_1_5_15_before": [round(x, 2) for x in load_before],
+        "machine": {"cpu_model": _cpu_model(), "cpus": os.cpu_count(),
+                    "load_avg_1_5_15_before": [round(x, 2) for x in load_before],
                     "load_avg_1_5_15_after": [round(x, 2) for x in load_after]},
         "stages": list(stages) if stages else "all",
         "repeat": args.repeat,
@@ -278,7 +283,10 @@ def main() -> None:
         "floor_cpu_real_time_factor": FLOOR_CPU_REAL_TIME_FACTOR,
         "cpu_real_time_factor": scenario["default"]["cpu_real_time_factor"],
         "scenario": scenario,
+        "bare_mj_step_cpu_seconds": round(bare, 3),
         "bare_mj_step_cpu_real_time_factor": round(scenario["default"]["sim_seconds"] / bare, 3),
+        # the whole run's speed as a share of bare mj_step's on the same scene (1 = nothing but mj_step)
+        "run_vs_bare_mj_step": round(bare / scenario["default"]["cpu_seconds_min"], 3),
         "bare_mj_step_plain_cable_path_cpu_real_time_factor": round(scenario["default"]["sim_seconds"] / bare_plain, 3),
         "fast_vs_plain_cable_path": {
             "cpu_ratio": scenario[PLAIN]["cpu_ratio_vs_default"],

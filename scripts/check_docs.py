@@ -115,12 +115,13 @@ def _execute(command: str, root: Path) -> subprocess.CompletedProcess | str:
 
 def _json_value(stdout: str, key: str, spec: str) -> str:
     """``key`` (dotted) of the first JSON object in ``stdout``, formatted with ``spec``."""
-    start = stdout.find("{")
+    starts = [i for i in (stdout.find("{"), stdout.find("[")) if i >= 0]
+    start = min(starts) if starts else -1
     if start < 0:
         raise ValueError("the command printed no JSON object")
     value = json.JSONDecoder().raw_decode(stdout[start:])[0]
     for part in key.split("."):
-        value = value[part]
+        value = value[int(part)] if isinstance(value, list) else value[part]
     return format(value, spec)
 
 
@@ -167,7 +168,9 @@ def fix(checks: list[Check], root: Path = ROOT) -> int:
     for rel, items in by_file.items():
         path = root / rel
         lines = path.read_text().splitlines()
-        for c in sorted(items, key=lambda c: -c.line):  # bottom up: a block's new length moves no check above it
+        # bottom up (a block's new length moves no check above it), right to left within a line (an edit
+        # moves no marker left of it)
+        for c in sorted(items, key=lambda c: (-c.line, -len(c.text_before))):
             got = produce(c, root)
             if isinstance(got, Problem) or got == c.expected.strip():
                 continue

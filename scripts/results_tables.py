@@ -5,6 +5,7 @@
     python scripts/results_tables.py paper-result     # docs/calibration.md: P(paper's result) over the ranges
     python scripts/results_tables.py paper-outcomes   # docs/calibration.md: how the other samples ended
     python scripts/results_tables.py table FILE.md [N] # the N-th table (default 1st) of a published .md output
+    python scripts/results_tables.py pareto STUDY_DIR  # an optimisation study's front
 
 Each prints one Markdown block (no blank line) that a ``check-block`` marker in the docs compares
 with the page (``scripts/check_docs.py``; ``--fix`` rewrites the page from it).
@@ -120,6 +121,24 @@ def paper_outcomes() -> list[str]:
     return rows
 
 
+def pareto(folder: str) -> list[str]:
+    """An optimisation study's front (its pareto.csv): trial, objectives, success probability, design."""
+    import csv
+
+    root = ROOT / folder
+    summary = _load(root / "summary.json")
+    objectives = [o["metric"] for o in summary["objectives"]]
+    variables = [v["path"] for v in summary["variables"]]
+    rows = list(csv.DictReader((root / "pareto.csv").open()))
+    head = ["trial", *objectives, "success probability", *variables]
+    out = ["| " + " | ".join(f"`{h}`" if "." in h else h for h in head) + " |", "|" + "---|" * len(head)]
+    for row in rows:
+        cells = [row["trial"], *[f"{float(row[o]):.3g}" for o in objectives], f"{float(row['success_probability']):.2f}",
+                 *[f"{float(row[v]):.3g}" for v in variables]]
+        out.append("| " + " | ".join(cells) + " |")
+    return out
+
+
 def md_table(path: str, index: str = "1") -> list[str]:
     """The ``index``-th (1-based) Markdown table of a published ``.md`` output, as it stands."""
     lines = (ROOT / path).read_text().splitlines()
@@ -137,6 +156,9 @@ TABLES = {"default-runs": default_runs, "experiment": experiment, "paper-result"
 
 
 def main(argv: list[str]) -> int:
+    if argv[:1] == ["pareto"] and len(argv) == 2:
+        print("\n".join(pareto(argv[1])))
+        return 0
     if argv[:1] == ["table"] and len(argv) in (2, 3):
         print("\n".join(md_table(*argv[1:])))
         return 0

@@ -2,7 +2,8 @@
 
     python scripts/sorosim_dynamics_table.py --out validation/sorosim_dynamics_table
 
-Writes ``<out>.md`` / ``<out>.json`` (atomic) and prints the table; progress on stderr.
+Writes ``<out>.md`` / ``<out>.json`` (atomic) and prints the tables; progress on stderr. The .md holds
+the per-case table, then one row per rod: the worst case of each variant (docs/validation.md).
 Variant ``file τ``: every joint spring k gets c = τ·k with the case's own τ from the file
 (the map the report uses). Variant ``one τ``: the rod's mean τ over its 10 cases for all
 of them, to show what a single damping value per rod can and cannot match.
@@ -69,10 +70,37 @@ def main(argv: list[str] | None = None) -> int:
         f"{r['decay_ref']:.3f} | {r['decay_err_pct']:+.1f} |\n"
         for r in rows
     )
-    atomic_write_text(args.out.with_suffix(".md"), head + body)
+    text = head + body + "\n" + summary_table(rows)
+    atomic_write_text(args.out.with_suffix(".md"), text)
     atomic_write_text(args.out.with_suffix(".json"), json.dumps(rows, indent=2) + "\n")
-    print(head + body, end="")
+    print(text, end="")
     return 0
+
+
+def summary_table(rows: list[dict]) -> str:
+    """One row per rod: τ range, worst tip RMS, frequency and decay errors of both variants, cases over 1 % L."""
+    lines = [
+        "| rod | links | τ over the cases (ms) | tip RMS % L, worst (file τ / one τ) | swing frequency error, worst (file τ) "
+        "| decay error, worst (file τ / one τ) | cases with tip RMS > 1 % L (file τ / one τ) |",
+        "|---|---:|---|---|---:|---|---|",
+    ]
+
+    def worst(values: list[float]) -> float:
+        return max(values, key=abs)
+
+    for rod in dict.fromkeys(r["rod"] for r in rows):
+        file_t = [r for r in rows if r["rod"] == rod and r["variant"] == "file τ"]
+        one_t = [r for r in rows if r["rod"] == rod and r["variant"] == "one τ"]
+        taus = [1000 * r["tau"] for r in file_t]
+        worst_one = max(one_t, key=lambda r: abs(r["decay_err_pct"]))
+        lines.append(
+            f"| {rod} | {file_t[0]['links']} | {min(taus):.1f}–{max(taus):.1f} "
+            f"| {max(r['tip_rms_pct'] for r in file_t):.2f} / {max(r['tip_rms_pct'] for r in one_t):.2f} "
+            f"| {worst([r['f_err_pct'] for r in file_t]):+.2f} % "
+            f"| {worst([r['decay_err_pct'] for r in file_t]):+.1f} % / {worst_one['decay_err_pct']:+.1f} % (case {worst_one['case']}) "
+            f"| {sum(r['tip_rms_pct'] > 1.0 for r in file_t)} of {len(file_t)} / {sum(r['tip_rms_pct'] > 1.0 for r in one_t)} of {len(one_t)} |"
+        )
+    return "\n".join(lines) + "\n"
 
 
 if __name__ == "__main__":

@@ -8,8 +8,12 @@ Two reports (docs/plant.md, "Tension chatter"):
 * ``task``: the whole default task (or one variant) in 2 s windows, both arms, with the
   contact count (the jaw pads' contact set).
 
-    python scripts/tension_chatter.py [hold] [--until 14] [--variants default,explicit,dt2ms]
+    python scripts/tension_chatter.py [hold] [--until 14] [--variants default,explicit,dt2ms] [--markdown]
     python scripts/tension_chatter.py task [--variant default]
+
+``--markdown`` prints the hold report as the Markdown table docs/plant.md quotes (no CPU
+times, so the output depends on the model only): the results pipeline's ``plant-chatter``
+stage writes it to docs/results/tension_chatter_hold.md.
 """
 
 from __future__ import annotations
@@ -92,9 +96,21 @@ def high_pass(x: np.ndarray, rate: float) -> np.ndarray:
     return sosfiltfilt(butter(4, 10.0, "highpass", fs=rate, output="sos"), x, axis=0)
 
 
-def hold_report(variants: list[str], until: float) -> None:
-    print(f"gripper arm holding the welded sample, 8-{until:g} s, per physics step")
-    print(f"{'variant':22s} {'p-p >10 Hz (N)':>15s} {'peak (Hz)':>10s} {'iterations':>11s} {'CPU s':>6s}")
+def _overrides(name: str) -> str:
+    changes = VARIANTS[name]
+    if not changes:
+        return "shipped defaults"
+    return ", ".join(f"`{path} = {str(value).lower() if isinstance(value, bool) else format(value, '.4g') if isinstance(value, float) else value}`"
+                     for path, value in changes.items())
+
+
+def hold_report(variants: list[str], until: float, markdown: bool = False) -> None:
+    if markdown:
+        print("| variant | changed from the defaults | p-p above 10 Hz (N) | peak (Hz) | solver iterations |")
+        print("|---|---|---|---|---|")
+    else:
+        print(f"gripper arm holding the welded sample, 8-{until:g} s, per physics step")
+        print(f"{'variant':22s} {'p-p >10 Hz (N)':>15s} {'peak (Hz)':>10s} {'iterations':>11s} {'CPU s':>6s}")
     for name in variants:
         rows, arms, rate, cpu = record(VARIANTS[name], until)
         n = (rows.shape[1] - 4) // len(arms)
@@ -106,6 +122,10 @@ def hold_report(variants: list[str], until: float) -> None:
         spectrum = np.abs(np.fft.rfft(high[:, worst]))
         peak = np.fft.rfftfreq(len(high), 1.0 / rate)[np.argmax(spectrum)]
         p2p = float(np.ptp(high, axis=0).max())
+        if markdown:
+            print(f"| {name} | {_overrides(name)} | {p2p:.1f} | {f'{peak:.0f}' if p2p > 0.5 else '–'} "
+                  f"| {rows[window, 1].mean():.1f} |", flush=True)
+            continue
         shown = f"{peak:10.1f}" if p2p > 0.5 else f"{'-':>10s}"
         print(f"{name:22s} {p2p:15.2f} {shown} {rows[window, 1].mean():11.2f} {cpu:6.1f}", flush=True)
 
@@ -131,13 +151,14 @@ def main() -> None:
     parser.add_argument("--until", type=float, default=14.0, help="hold: end of the window (s)")
     parser.add_argument("--variants", default="default,explicit", help=f"hold: comma-separated, of {', '.join(VARIANTS)}")
     parser.add_argument("--variant", default="default", help="task: one variant")
+    parser.add_argument("--markdown", action="store_true", help="hold: print the Markdown table docs/plant.md quotes")
     args = parser.parse_args()
     if args.report == "hold":
         names = [v.strip() for v in args.variants.split(",") if v.strip()]
         unknown = [v for v in names if v not in VARIANTS]
         if unknown:
             parser.error(f"--variants: unknown {', '.join(unknown)} (allowed: {', '.join(VARIANTS)})")
-        hold_report(names, args.until)
+        hold_report(names, args.until, args.markdown)
     else:
         if args.variant not in VARIANTS:
             parser.error(f"--variant: unknown {args.variant} (allowed: {', '.join(VARIANTS)})")
