@@ -9,6 +9,11 @@ Robustness uses common random numbers: the same ``samples`` draws of the assumed
 parameters (a Latin hypercube over their ranges, log10 space where the registry samples
 logarithmically, seeded by the optimiser's seed) for every design, so two designs are
 compared on the same plants.
+
+A best design's TOML is headed by ``header_lines``: the study it came from (folder, spec
+hash, provenance commit) and what reproduces its objective values (the evaluation, the
+objectives and constraints, the robustness samples' values, the values recorded), which
+``continuum-sim evaluate`` reads back (``read_header``, ``header_spec``).
 """
 
 from __future__ import annotations
