@@ -49,6 +49,7 @@ class StudyResult:
     n_run: int
     n_failed: int
     summary: dict[str, Any]
+    worker_startup_s: float | None = None  # Ray: starting the warm workers (not part of any variant's cost)
 
 
 def study_sweep(spec: SensitivitySpec) -> tuple[StudySweep, list[str]]:
@@ -126,6 +127,7 @@ def run_study(
         bar = tqdm(total=len(sweep.samples), initial=n_skipped, desc=f"sensitivity ({spec.method})", unit="run",
                    disable=not progress, dynamic_ncols=True)
         failed_now = 0
+        startup_s = None
 
         def on_result(variant: Variant, result: dict[str, Any]) -> None:
             nonlocal failed_now
@@ -138,7 +140,9 @@ def run_study(
         try:
             if pending:
                 if backend == "ray":
-                    backends.run_ray(sweep, pending, workers, address, None, on_result)
+                    with backends.RaySession(workers, address) as session:  # one connection, warm workers
+                        session.run(sweep, pending, None, on_result)
+                    startup_s = session.worker_startup_s
                 else:
                     backends.run_processes(sweep, pending, workers or backends.default_workers(), None, on_result)
         finally:
@@ -146,4 +150,4 @@ def run_study(
         summary = write_report(spec, row_ids, records, store.root)
         write_provenance(store.root, "sensitivity", spec, spec_path)
     n_failed = sum(1 for r in records.values() if r["status"] != "ok")
-    return StudyResult(store.root, len(row_ids), len(sweep.samples), n_skipped, len(pending), n_failed, summary)
+    return StudyResult(store.root, len(row_ids), len(sweep.samples), n_skipped, len(pending), n_failed, summary, startup_s)

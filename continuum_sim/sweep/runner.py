@@ -30,6 +30,7 @@ class SweepResult:
     tables: tuple[Path, ...]
     plots: tuple[Path, ...]
     records: dict[str, dict[str, Any]]
+    worker_startup_s: float | None = None  # Ray: starting the warm workers (not part of any variant's cost)
 
 
 def choose_mode(spec: SweepSpec, backend: Backend, batch: Batch) -> str:
@@ -97,6 +98,7 @@ def run_sweep(
         n_skipped = len(variants) - len(pending)
         run_root = str(store.root / "runs") if getattr(spec.evaluation, "keep_runs", False) else None
 
+        startup_s = None
         bar = tqdm(total=len(variants), initial=n_skipped, desc="sweep", unit="variant", disable=not progress, dynamic_ncols=True)
         failed_now = 0
 
@@ -112,7 +114,9 @@ def run_sweep(
             if pending:
                 n_workers = workers or backends.default_workers()
                 if backend == "ray":
-                    backends.run_ray(spec, pending, workers, address, run_root, on_result)
+                    with backends.RaySession(workers, address) as session:  # one connection, warm workers
+                        session.run(spec, pending, run_root, on_result)
+                    startup_s = session.worker_startup_s
                 elif mode == "shared":
                     backends.run_shared(spec, pending, n_workers, on_result, progress=progress)
                 else:
@@ -123,4 +127,4 @@ def run_sweep(
         plots = write_plots(spec, records, store.root)
         write_provenance(store.root, "sweep", spec, spec_path)
     n_failed = sum(1 for r in records.values() if r["status"] != "ok")
-    return SweepResult(store.root, len(variants), n_skipped, len(pending), n_failed, mode, tuple(tables), tuple(plots), records)
+    return SweepResult(store.root, len(variants), n_skipped, len(pending), n_failed, mode, tuple(tables), tuple(plots), records, startup_s)
