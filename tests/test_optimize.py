@@ -298,3 +298,14 @@ def test_trials_and_seed_overrides_are_checked_like_the_spec(tmp_path):
         with pytest.raises(ConfigError) as info:
             with_optimizer(spec, **kwargs)
         assert info.value.field == field
+
+
+def test_parquet_is_skipped_without_pyarrow(tmp_path, monkeypatch):
+    """Without pyarrow the tables are CSV only (summary.json says so in ``notes``); nothing half-written is left."""
+    from continuum_sim.optimize.report import PARQUET_MISSING, write_parquet
+    from continuum_sim.sensitivity.report import write_parquet as write_samples_parquet
+
+    monkeypatch.setitem(sys.modules, "pyarrow", None)  # import pyarrow raises ImportError
+    assert write_parquet([{"trial": 0, "sag_mm": 1.5}], ["trial", "sag_mm"], tmp_path / "trials.parquet") is False
+    assert write_samples_parquet(["row", "sag_mm"], [[0, 1.5]], tmp_path / "samples.parquet") is False
+    assert not list(tmp_path.iterdir()) and "pyarrow" in PARQUET_MISSING
