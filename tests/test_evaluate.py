@@ -102,6 +102,12 @@ def test_spec_and_evaluation_options(study, capsys, tmp_path):
     assert code == 0 and same_kind["equal"] is True and same_kind["evaluation"]["settle_s"] == 0.3
     code, other = _evaluate(capsys, str(design), "--evaluation", '{"kind": "gravity_sag", "settle_s": 0.2}')
     assert code == 0 and other["equal"] is None and other["recorded"] is None  # another evaluation: nothing to compare
+    edited = tmp_path / "edited.toml"  # a recorded value that the design does not give: exit 1, named
+    text = design.read_text()
+    recorded = read_header(text)["values"]["sag_mm"]
+    edited.write_text(text.replace(repr(recorded), repr(recorded + 1e-9), 1))
+    assert main(["evaluate", str(edited)]) == 1
+    assert "DIFFERENT" in capsys.readouterr().out
     bare = tmp_path / "bare.toml"
     bare.write_text(design.read_text().split("\n\n", 1)[1])  # the scenario without its header
     assert main(["evaluate", str(bare)]) == 2

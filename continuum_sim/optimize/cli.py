@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-EXIT_NEGATIVE = 1  # the command ran but the answer is no (docs/errors.md): not reproduced, or the evaluation failed
+EXIT_NEGATIVE = 1  # the command ran but the answer is no (docs/errors.md): not reproduced, or every evaluation failed
 
 
 def cmd_optimize(args: argparse.Namespace) -> int:
@@ -144,6 +144,7 @@ def evaluate_file(design: str | Path, evaluation: str | None = None, spec_path: 
         "success_probability": outcome["success_probability"] if spec.robust else None,
         "failure": outcome.get("failure"),
         "failures": outcome["failures"],
+        "evaluations_failed": sum(r["status"] != "ok" for r in records),
         "metrics": [r["metrics"] for r in records],
         "study": None if header is None else {k: header.get(k) for k in ("study", "trial", "spec_sha256", "commit", "dirty")},
     }
@@ -161,22 +162,27 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         origin = f"trial {study['trial']} of {study['study']}" if study.get("study") else "no study header"
         print(f"{out['design']}: {kind}, {out['samples']} evaluation{'s' if out['samples'] != 1 else ''} ({origin})")
         if out["objectives"] is None:
-            print(f"  failed: {out['failure']}")
-        elif out["objectives"]:
+            print(f"  no objective values: {out['failure']}")
+        if out["objectives"]:
             for label, value in out["objectives"].items():
                 before = (out["recorded"] or {}).get(label)
                 mark = "" if before is None else f"   (recorded {before!r}: {'equal' if before == value else 'DIFFERENT'})"
                 print(f"  {label} = {value!r}{mark}")
             if out["success_probability"] is not None:
                 print(f"  {SUCCESS} = {out['success_probability']!r}")
-        else:
-            for name, value in out["metrics"][0].items():
-                print(f"  {name} = {value!r}")
+        else:  # no objectives to show (none asked, or not measured by this evaluation): the metrics
+            for k, metrics in enumerate(out["metrics"]):
+                prefix = f"sample {k}: " if len(out["metrics"]) > 1 else ""
+                for name, value in metrics.items():
+                    print(f"  {prefix}{name} = {value!r}")
         if out["equal"] is True:
             print("reproduced: every objective equals the recorded value exactly")
         elif out["equal"] is False:
             print("NOT reproduced: an objective differs from the recorded value (code, libraries or machine changed?)")
-    return EXIT_NEGATIVE if out["equal"] is False or out["objectives"] is None else 0
+    failed = out["evaluations_failed"] == out["samples"]
+    if failed:
+        print(f"continuum-sim evaluate: the evaluation failed: {'; '.join(out['failures'])}", file=sys.stderr)
+    return EXIT_NEGATIVE if out["equal"] is False or failed else 0
 
 
 def add_evaluate_parser(sub: Any) -> None:
