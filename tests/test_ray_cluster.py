@@ -159,10 +159,6 @@ def _results(records: Path) -> dict[str, tuple]:
     return out
 
 
-def _pids(records: Path) -> set[int]:
-    return {json.loads(p.read_text())["pid"] for p in records.glob("*.json")}
-
-
 @pytest.mark.parametrize(
     ("command", "text", "records"),
     [("sweep", SWEEP, "records"), ("sensitivity", SENSITIVITY, "records"), ("optimize", OPTIMIZE, "evaluations/records")],
@@ -180,9 +176,8 @@ def test_a_study_on_the_cluster_matches_the_local_run_with_one_connection(tmp_pa
     assert expected and _results(tmp_path / "ray" / records) == expected
     assert remote.stderr.count("ray: connected to") == 1, remote.stderr  # optimize: 2 generations, one connection
     assert f"ray: connected to {address} (2 CPUs)" in remote.stderr
-    assert "2 workers ready in" in remote.stderr and "worker_startup_s" in remote.stderr
-    if command == "sweep":
-        assert len(_pids(tmp_path / "ray" / records)) == 2  # one warm worker on each node, reused for every variant
+    # the workers' start-up is reported apart (a study this small may finish before the second worker is up)
+    assert "workers ready in" in remote.stderr and "(worker_startup_s; not part of any variant's cost)" in remote.stderr
 
 
 @pytest.mark.parametrize(("token", "detail"), [("0" * 64, "refused the token from RAY_AUTH_TOKEN"), (None, "no token given")])
@@ -200,3 +195,4 @@ def test_a_wrong_or_missing_token_is_one_line_naming_authentication(tmp_path, cl
     assert len(lines) == 1, proc.stderr
     assert "authentication failed: set RAY_AUTH_TOKEN or RAY_AUTH_TOKEN_PATH (ray get-auth-token on the head)" in lines[0]
     assert detail in lines[0]
+    assert not (tmp_path / "ray").exists()  # refused before the study folder is touched

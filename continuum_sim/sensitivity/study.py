@@ -114,10 +114,8 @@ def run_study(
     preflight(backend, workers)
     sweep, row_ids = study_sweep(spec)
     check_samples(sweep)
-    if backend == "ray" and address is not None:
-        backends.probe_address(address)
     store = ResultStore(out)
-    with store.lock():
+    with backends.study_session(backend, workers, address) as session, store.lock():  # Ray: connected before the folder is touched
         store.prepare(sweep)
         write_provenance(store.root, "sensitivity", spec, spec_path)
         wanted = {v.variant_id for v in sweep.samples}
@@ -139,9 +137,8 @@ def run_study(
 
         try:
             if pending:
-                if backend == "ray":
-                    with backends.RaySession(workers, address) as session:  # one connection, warm workers
-                        session.run(sweep, pending, None, on_result)
+                if session is not None:
+                    session.run(sweep, pending, None, on_result)
                     startup_s = session.worker_startup_s
                 else:
                     backends.run_processes(sweep, pending, workers or backends.default_workers(), None, on_result)

@@ -344,6 +344,7 @@ class RaySession:
         self._ready: set[int] = set()
         self._starting: dict[Any, int] = {}  # ready() ref -> slot
         self._startup_clock: float | None = None
+        self._last_ready_s: float | None = None
         self._slots = 0
 
     def __enter__(self) -> RaySession:
@@ -417,10 +418,19 @@ class RaySession:
             self.log(f"ray: a worker could not start ({describe(exc)[:200]}); going on with {len(self._actors)}")
         else:
             self._ready.add(slot)
-        if not self._starting and self.worker_startup_s is None and self._startup_clock is not None:
-            self.worker_startup_s = time.perf_counter() - self._startup_clock
-            self.log(f"ray: {len(self._ready)} workers ready in {self.worker_startup_s:.1f} s "
-                     "(worker_startup_s; not part of any variant's cost)")
+            if self._startup_clock is not None:
+                self._last_ready_s = time.perf_counter() - self._startup_clock
+        if not self._starting:
+            self._report_startup()
+
+    def _report_startup(self) -> None:
+        """``worker_startup_s`` (once): until the last worker was ready, or the last ready one when the study ended first."""
+        if self.worker_startup_s is not None or self._last_ready_s is None:
+            return
+        self.worker_startup_s = self._last_ready_s
+        ready = f"{len(self._ready)}" if not self._starting else f"{len(self._ready)} of {len(self._ready) + len(self._starting)}"
+        rest = "" if not self._starting else "; the rest were still starting when the study ended"
+        self.log(f"ray: {ready} workers ready in {self.worker_startup_s:.1f} s (worker_startup_s; not part of any variant's cost){rest}")
 
     def _replace_worker(self, slot: int) -> None:
         self._ready.discard(slot)
@@ -490,6 +500,7 @@ class RaySession:
         ray, self._ray = self._ray, None
         if ray is None:
             return
+        self._report_startup()
         self._actors.clear()
         self._ready.clear()
         self._starting.clear()
@@ -497,6 +508,22 @@ class RaySession:
             ray.shutdown()
         finally:
             self._restore_auth_mode()
+
+
+@contextlib.contextmanager
+def study_session(backend: str, workers: int | None, address: str | None) -> Iterator[RaySession | None]:
+    """A study's one Ray session (None for the local backend), closed when the study ends.
+
+    With an address it connects at once, so a refused connection (token, versions) stops
+    the study before its folder is touched; a local instance starts with the first variant.
+    """
+    if backend != "ray":
+        yield None
+        return
+    with RaySession(workers, address) as session:
+        if address is not None:
+            session.connect()
+        yield session
 
 
 def run_ray(

@@ -80,10 +80,8 @@ def run_sweep(
         raise ConfigError("--address", "only applies to --backend ray")
     preflight(backend, workers)
     mode = choose_mode(spec, backend, batch)
-    if backend == "ray" and address is not None:
-        backends.probe_address(address)  # before the folder is touched
     store = ResultStore(out)
-    with store.lock():
+    with backends.study_session(backend, workers, address) as session, store.lock():  # Ray: connected before the folder is touched
         store.prepare(spec)
         write_provenance(store.root, "sweep", spec, spec_path)
         records = store.load()
@@ -113,9 +111,8 @@ def run_sweep(
         try:
             if pending:
                 n_workers = workers or backends.default_workers()
-                if backend == "ray":
-                    with backends.RaySession(workers, address) as session:  # one connection, warm workers
-                        session.run(spec, pending, run_root, on_result)
+                if session is not None:
+                    session.run(spec, pending, run_root, on_result)
                     startup_s = session.worker_startup_s
                 elif mode == "shared":
                     backends.run_shared(spec, pending, n_workers, on_result, progress=progress)
