@@ -5,7 +5,7 @@ this module, every address 127.0.0.1 (its servers listen there only), with
 ``RAY_AUTH_MODE=token`` and a token generated here. Each study connects once, gets the
 token through the environment only (``RAY_AUTH_TOKEN``, no ``RAY_AUTH_MODE``: the driver
 turns token mode on itself), and records the same results as the local backend; a wrong
-or missing token is one line naming authentication, exit 2. The helper's nodes are stopped
+or missing token, or another Ray version, is one line naming the cause, exit 2. The helper's nodes are stopped
 in a finally, and no process of this cluster may survive.
 """
 
@@ -196,3 +196,23 @@ def test_a_wrong_or_missing_token_is_one_line_naming_authentication(tmp_path, cl
     assert "authentication failed: set RAY_AUTH_TOKEN or RAY_AUTH_TOKEN_PATH (ray get-auth-token on the head)" in lines[0]
     assert detail in lines[0]
     assert not (tmp_path / "ray").exists()  # refused before the study folder is touched
+
+
+def test_a_version_mismatch_is_one_line_naming_both_versions(tmp_path, cluster):
+    """Ray's own check, fed another Ray version for this process (installing one would take minutes)."""
+    address, _, env = cluster
+    spec = tmp_path / "sweep.toml"
+    spec.write_text(SWEEP)
+    driver = ("import sys, ray._private.utils as u; here = u.compute_version_info(); "
+              "u.compute_version_info = lambda: ('9.9.9', here[1]); "
+              "from continuum_sim.cli import main; sys.exit(main(sys.argv[1:]))")
+    cmd = [sys.executable, "-c", driver, "sweep", str(spec), "--out", str(tmp_path / "ray"), "--quiet", "--backend", "ray",
+           "--address", address]
+    proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    import ray
+
+    assert f"version mismatch: the cluster runs Ray {ray.__version__} on Python " in lines[0]
+    assert "this machine Ray 9.9.9 on Python" in lines[0]

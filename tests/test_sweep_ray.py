@@ -1,6 +1,7 @@
-"""The Ray backend runs the same sweep on an existing cluster, with identical results."""
+"""The Ray backend runs the same sweep on an existing cluster, with identical results; its connection errors and worker deaths."""
 
 import csv
+import json
 import os
 import subprocess
 import sys
@@ -112,3 +113,36 @@ def test_a_variant_that_kills_its_worker_twice_is_recorded_failed_and_the_rest_r
     queue.pop()
     session._worker_died(1, [a], queue, deaths, on_result, RuntimeError("worker died"))
     assert recorded == [("v0", "failed")] and [v.variant_id for v in queue] == ["v2", "v1"] and replaced == [0, 1]
+
+
+KILL_A_WORKER = """\
+import json, os, signal, sys
+from continuum_sim.sweep import backends, load_spec
+
+spec = load_spec(sys.argv[1])
+statuses, killed, lines = {}, [], []
+
+def on_result(variant, result):
+    statuses[variant.variant_id] = [result["status"], result["error"]]
+    if not killed:  # SIGKILL the worker that returned the first result: it has the next variant on it
+        killed.append(result["pid"])
+        os.kill(result["pid"], signal.SIGKILL)
+
+with backends.RaySession(2, sys.argv[2], log=lines.append) as session:
+    session.run(spec, spec.variants(), None, on_result)
+print(json.dumps({"statuses": statuses, "log": lines}))
+"""
+
+
+def test_a_killed_worker_is_replaced_and_its_variants_run_again(tmp_path, ray_address):
+    spec_path = tmp_path / "ray.toml"
+    spec_path.write_text(SPEC)
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.run([sys.executable, "-c", KILL_A_WORKER, str(spec_path), ray_address], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert sorted(status for status, _ in out["statuses"].values()) == ["failed", "ok", "ok", "ok"], out
+    assert all("worker died" not in str(error) for _, error in out["statuses"].values())  # the 300x one diverges, as locally
+    assert any(line.startswith("ray: a worker died") for line in out["log"]), out["log"]
+    assert out["log"][0].startswith(f"ray: connected to {ray_address} (2 CPUs)")
