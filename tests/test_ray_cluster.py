@@ -12,6 +12,7 @@ in a finally, and no process of this cluster may survive.
 import json
 import os
 import secrets
+import shutil
 import signal
 import socket
 import subprocess
@@ -142,6 +143,7 @@ def cluster():
         strays = _cluster_processes(temp_dir)
         for proc in strays:  # only this cluster's processes: they name its temp folder
             proc.kill()
+        shutil.rmtree(temp_dir, ignore_errors=True)
         assert not strays, f"Ray processes outlived the cluster: {[p.info['cmdline'][:1] for p in strays]}"
 
 

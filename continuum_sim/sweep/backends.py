@@ -5,6 +5,10 @@ driver as each one finishes; the driver alone writes records, so a remote Ray wo
 never needs the sweep folder. No backend decides what a variant computes: that is
 ``worker.evaluate_payload`` (processes, Ray) or ``static.evaluate_static_shared``
 (shared model), and tests check they agree bit for bit.
+
+Ray is a ``RaySession``: a study connects once, whatever the number of ``run`` calls, and
+keeps one warm worker per CPU (``RayWorker``) for all of them; a refused connection is
+one line naming its cause (authentication, versions, an unreachable address).
 """
 
 from __future__ import annotations
