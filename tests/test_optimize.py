@@ -1,4 +1,4 @@
-"""Design optimisation (issue 28): spec errors, per-section stiffness, seeded trials, kill and resume, robust aggregation."""
+"""Design optimisation: spec errors, per-section stiffness, seeded trials, kill and resume, robust aggregation."""
 
 import csv
 import json
@@ -232,3 +232,80 @@ def test_robust_study_end_to_end_success_probability_from_its_samples(tmp_path):
         assert trial.user_attrs["success_probability"] == pytest.approx(sum(held) / 3)
         assert trial.values[0] == pytest.approx(sum(held) / 3)
         assert trial.user_attrs["constraints"] == pytest.approx([0.5 - sum(held) / 3])
+
+
+def test_cli_flags_override_the_spec_optuna_storage_names_and_best_trials(tmp_path, capsys):
+    """--trials/--seed run a spec without editing it; --storage sqlite and --study-name put the study where Optuna's own
+    API finds it, with the objectives' names; the report's front is Optuna's best_trials; --trials extends the study."""
+    import optuna
+
+    from continuum_sim.cli import main
+
+    text = SPEC.replace("high = 400.0", "high = 8.0")  # no diverging designs: a short study
+    path = write(tmp_path, text)
+    url = f"sqlite:///{tmp_path / 'studies.db'}"
+    out = tmp_path / "flags"
+    args = ["optimize", str(path), "--out", str(out), "--trials", "6", "--seed", "1", "--storage", url, "--study-name", "s1",
+            "--workers", "1", "--quiet"]
+    assert main(args) == 0
+    assert path.read_text() == text  # the spec is as written
+    rows = trial_rows(out)
+    assert [r["trial"] for r in rows] == [str(i) for i in range(6)]
+    study = optuna.load_study(storage=url, study_name="s1")
+    assert study.metric_names == ["sag_mm", "max_cable_tension_n"] and len(study.trials) == 6
+    frame = study.trials_dataframe()
+    assert {"values_sag_mm", "values_max_cable_tension_n"} <= set(frame.columns) and "values_0" not in frame.columns
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["optuna"]["study_name"] == "s1" and summary["optuna"]["storage"] == url and summary["seed"] == 1
+    assert summary["budget"] == 6 and not (out / "study.journal").exists()
+    # the same seed from the spec in the folder's journal gives the same trials: the storage changes nothing
+    same = run_study(load_spec(write(tmp_path, text.replace("seed = 3", "seed = 1").replace("trials = 12", "trials = 6"), "s1.toml")),
+                     tmp_path / "journal", workers=1, progress=False)
+    assert same.n_trials == 6 and designs(tmp_path / "journal") == designs(out)
+    # the report's front is Optuna's best_trials, which the project's own filter agrees with
+    best = sorted(t.number for t in study.best_trials)
+    assert [int(r["trial"]) for r in trial_rows(out) if r["trial"] in {str(b) for b in best}] == [b["trial"] for b in summary["best"]]
+    done = [t for t in study.trials if t.state.name == "COMPLETE"]
+    assert sorted(done[i].number for i in pareto_indices([list(t.values) for t in done], ["minimize", "minimize"])) == best
+    with (out / "pareto.csv").open() as fh:
+        assert sorted(int(r["trial"]) for r in csv.DictReader(fh)) == best
+    if __import__("importlib").util.find_spec("pyarrow") is not None:
+        import pyarrow.parquet as pq
+
+        table = pq.read_table(out / "trials.parquet").to_pydict()
+        assert table["trial"] == [float(r["trial"]) for r in rows] and table["sag_mm"] == [float(r["sag_mm"]) for r in rows]
+        assert sorted(pq.read_table(out / "pareto.parquet").to_pydict()["trial"]) == [float(b) for b in best]
+    # --trials 8 on the same folder and storage extends the study: the first 6 trials untouched, 2 designs more
+    capsys.readouterr()
+    assert main([*args[:5], "8", *args[6:]]) == 0
+    assert [r[:3] for r in designs(out)][:6] == [r[:3] for r in designs(tmp_path / "journal")]
+    assert len(trial_rows(out)) == 8 and len(optuna.load_study(storage=url, study_name="s1").trials) == 8
+    # another spec under the same study name is refused: one line naming --study-name, exit 2
+    other = write(tmp_path, text.replace('metric = "sag_mm"', 'metric = "sag_z_mm"'), "other.toml")
+    capsys.readouterr()
+    assert main(["optimize", str(other), "--out", str(tmp_path / "other"), "--storage", url, "--study-name", "s1", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--study-name" in err[0] and "another spec" in err[0], err
+
+
+def test_trials_and_seed_overrides_are_checked_like_the_spec(tmp_path):
+    from continuum_sim.optimize.spec import with_optimizer
+
+    spec = load_spec(write(tmp_path))
+    assert with_optimizer(spec, trials=5, seed=9).optimizer == type(spec.optimizer)("nsga2", 5, 4, 9)
+    assert with_optimizer(spec).optimizer == spec.optimizer
+    for kwargs, field in (({"trials": 0}, "--trials"), ({"seed": -1}, "--seed"), ({"trials": 10**6}, "--trials")):
+        with pytest.raises(ConfigError) as info:
+            with_optimizer(spec, **kwargs)
+        assert info.value.field == field
+
+
+def test_parquet_is_skipped_without_pyarrow(tmp_path, monkeypatch):
+    """Without pyarrow the tables are CSV only (summary.json says so in ``notes``); nothing half-written is left."""
+    from continuum_sim.optimize.report import PARQUET_MISSING, write_parquet
+    from continuum_sim.sensitivity.report import write_parquet as write_samples_parquet
+
+    monkeypatch.setitem(sys.modules, "pyarrow", None)  # import pyarrow raises ImportError
+    assert write_parquet([{"trial": 0, "sag_mm": 1.5}], ["trial", "sag_mm"], tmp_path / "trials.parquet") is False
+    assert write_samples_parquet(["row", "sag_mm"], [[0, 1.5]], tmp_path / "samples.parquet") is False
+    assert not list(tmp_path.iterdir()) and "pyarrow" in PARQUET_MISSING

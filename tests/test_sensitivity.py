@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import importlib.util
 import json
 import os
 import signal
@@ -142,6 +143,16 @@ def test_tiny_study_end_to_end_and_resume_after_kill(tmp_path):
         samples = list(csv.DictReader(fh))
     assert len(samples) == 6 and all(r["status"] == "ok" and r["sag_mm"] for r in samples)
     assert (out / "plots" / "indices.png").stat().st_size > 0 and (out / "plots" / "outcome_map.png").stat().st_size > 0
+    assert any("r = 2 trajectories" in w and "r = 10 would do (30 runs" in w for w in summary["warnings"])  # r < 10: said, with the size
+    assert "**Warning:** Morris r = 2" in (out / "summary.md").read_text()
+    if importlib.util.find_spec("pyarrow") is not None:  # the Parquet table equals the CSV
+        import pyarrow.parquet as pq
+
+        table = pq.read_table(out / "samples.parquet").to_pydict()
+        assert table["variant_id"] == [r["variant_id"] for r in samples]
+        assert table["sag_mm"] == [float(r["sag_mm"]) for r in samples] and "samples.parquet" in summary["files"]
+    else:
+        assert summary["notes"] and "pyarrow" in summary["notes"][0]
 
     rerun = run_study(spec, out, workers=1, progress=False)  # nothing left to evaluate
     assert rerun.n_run == 0
@@ -248,3 +259,49 @@ def test_uncertainty_analysis_counts_successes_with_the_exact_binomial_interval(
     assert mu["lower"] == {"n": 2, "success": 1.0} and mu["upper"] == {"n": 2, "success": 0.0}
     assert uncertainty.strength(spec, a)["model.cable_friction.mu"] == 1.0
     assert 0.0 <= a["base_position"]["model.cable_friction.mu"]["fraction_of_range"] <= 1.0
+
+
+# --- confidence intervals and the sample sizes they need (SALib's conventions) -------------------------------------
+
+
+def _analysis(**indices):
+    return {"indices": {p: {"S1": v[0], "S1_conf": v[1], "ST": v[2], "ST_conf": v[3]} for p, v in indices.items()}}
+
+
+def test_sobol_summary_table_shows_both_indices_with_their_intervals():
+    from continuum_sim.sensitivity.report import summary_markdown
+
+    summary = {"method": "sobol", "control_mode": "open", "evaluation": {"kind": "gravity_sag"}, "rows_recorded": 64, "rows": 64,
+               "failed": 0, "completed_fraction": None, "cpu_s_total": 1.0, "metrics": ["sag_mm"],
+               "parameters": [{"path": "a.b", "range": [0.0, 1.0], "log": False}], "strength": {"a.b": 1.0},
+               "analysis": {"sag_mm": {"indices": {"a.b": {"S1": 0.61, "S1_conf": 0.12, "ST": 0.83, "ST_conf": 0.09}}}},
+               "warnings": ["Sobol' N = 16 is too small"]}
+    text = summary_markdown(summary)
+    assert "| 0.83 ± 0.09 (0.61 ± 0.12) |" in text and "S_T ± 95 % (S1 ± 95 %)" in text
+    assert "- **Warning:** Sobol' N = 16 is too small." in text
+
+
+def test_sample_size_warnings_name_the_size_that_would_do():
+    import tomllib
+
+    from continuum_sim.sensitivity.design import sample_size_warnings
+
+    two = 'parameters = ["model.cable_friction.mu", "plan.cut_speed"]\n'
+    morris = parse_spec(tomllib.loads(two + "[morris]\ntrajectories = 4\n"))
+    [warning] = sample_size_warnings(morris, {"m": {"trajectories_used": 4}})
+    assert "r = 4" in warning and "r = 10 would do (30 runs for 2 parameters)" in warning
+    enough = parse_spec(tomllib.loads(two + "[morris]\ntrajectories = 10\n"))
+    assert sample_size_warnings(enough, {"m": {"trajectories_used": 10}}) == []
+    dropped = sample_size_warnings(enough, {"m": {"trajectories_used": 7}})  # failed evaluations left 7 of 10
+    assert len(dropped) == 1 and "only 7 of 10 trajectories" in dropped[0]
+
+    small = parse_spec(tomllib.loads('method = "sobol"\n' + two + "[sobol]\nsamples = 16\n"))
+    [warning] = sample_size_warnings(small, {"m": _analysis(**{"model.cable_friction.mu": (0.5, 0.1, 0.6, 0.1)})})
+    assert "N = 16" in warning and "N = 64 would do (256 runs for 2 parameters)" in warning
+    wide = parse_spec(tomllib.loads('method = "sobol"\n' + two + "[sobol]\nsamples = 64\n"))
+    analyses = {"m": _analysis(**{"model.cable_friction.mu": (0.2, 0.3, 0.25, 0.5), "plan.cut_speed": (0.01, 0.2, 0.02, 0.3)})}
+    [warning] = sample_size_warnings(wide, analyses)  # cut_speed's indices are below 0.05: noise around zero is no warning
+    # S_T = 0.25 ± 0.5: half-widths shrink as 1/sqrt(N); half the index needs N * (2 * 0.5 / 0.25)^2 = 1024
+    assert "ST of model.cable_friction.mu is 0.25 ± 0.5" in warning and "N = 1024 would bring it to about half (4096 runs)" in warning
+    tight = {"m": _analysis(**{"model.cable_friction.mu": (0.5, 0.05, 0.6, 0.05)})}
+    assert sample_size_warnings(wide, tight) == []

@@ -107,9 +107,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_sensitivity_parser(sub)
 
-    from ..optimize.cli import add_optimize_parser  # `optimize`: design optimisation (docs/optimize.md)
+    from ..optimize.cli import add_evaluate_parser, add_optimize_parser  # `optimize`, `evaluate`: design optimisation (docs/optimize.md)
 
     add_optimize_parser(sub)
+    add_evaluate_parser(sub)
 
     view = sub.add_parser("view", help="open the scene in MuJoCo's interactive viewer (needs a display)")
     view.add_argument("--config", help="scenario TOML file")

@@ -9,6 +9,11 @@ Robustness uses common random numbers: the same ``samples`` draws of the assumed
 parameters (a Latin hypercube over their ranges, log10 space where the registry samples
 logarithmically, seeded by the optimiser's seed) for every design, so two designs are
 compared on the same plants.
+
+A best design's TOML is headed by ``header_lines``: the study it came from (folder, spec
+hash, provenance commit) and what reproduces its objective values (the evaluation, the
+objectives and constraints, the robustness samples' values, the values recorded), which
+``continuum-sim evaluate`` reads back (``read_header``, ``header_spec``).
 """
 
 from __future__ import annotations
@@ -20,7 +25,7 @@ from typing import Any
 
 from ..configio import ConfigError, from_dict, set_path, to_dict
 from ..sweep.spec import SweepSpec, Variant, variant_id
-from .spec import OptimizeSpec, Variable
+from .spec import SUCCESS, OptimizeSpec, Variable
 
 Params = tuple[tuple[str, float | int], ...]
 
@@ -119,3 +124,83 @@ def check_designs(spec: OptimizeSpec) -> None:
         except ConfigError as exc:
             label = ", ".join(f"{p} = {v:g}" for p, v in params)
             raise ConfigError(where, f"{exc.field}: {exc.message} (at {label}); narrow the range") from None
+
+
+# ------------------------------------------------------------------ best designs: the header that reproduces them
+HEADER_TITLE = "continuum-sim design"
+HEADER_KEYS = ("study", "study_name", "storage", "spec_sha256", "study_sha256", "commit", "dirty", "code_sha256", "trial",
+               "evaluation", "objectives", "constraints", "min_success", "samples", "values", SUCCESS)
+
+
+def header_lines(spec: OptimizeSpec, *, trial: int, values: list[float], success: float | None, samples: list[Params],
+                 folder: str, study: dict[str, Any], provenance: dict[str, Any]) -> list[str]:
+    """The comment lines heading a best design's TOML: the study it came from and what reproduces its objectives.
+
+    Each data line is ``key: JSON`` (floats written exactly), so ``read_header`` gives back the
+    evaluation, the objectives (with their aggregation), the constraints, the robustness
+    samples' values and the recorded objective values; ``continuum-sim evaluate`` needs
+    nothing else. The study's folder, spec hash and provenance commit say where it came from.
+    """
+    import json
+
+    git = provenance.get("git") or {}
+    hashes = provenance.get("hashes") or {}
+    data: dict[str, Any] = {
+        "study": folder,
+        "study_name": study.get("name"),
+        "storage": study.get("storage"),
+        "spec_sha256": hashes.get("spec"),
+        "study_sha256": study.get("spec_sha256"),
+        "commit": git.get("commit"),
+        "dirty": git.get("dirty"),
+        "code_sha256": provenance.get("code_sha256"),
+        "trial": trial,
+        "evaluation": spec.evaluation.to_dict(),
+        "objectives": [{"label": o.label, "metric": o.metric, "direction": o.direction, "aggregate": o.aggregate, "q": o.q}
+                       for o in spec.objectives],
+        "constraints": [{"metric": c.metric, "min": c.low, "max": c.high} for c in spec.constraints],
+        "min_success": spec.robustness.min_success,
+        "samples": [[[p, v] for p, v in sample] for sample in samples],
+        "values": dict(zip([o.label for o in spec.objectives], values)),
+        SUCCESS: success,
+    }
+    lines = [f"{HEADER_TITLE}: trial {trial}, a best design of the optimisation study in {folder}",
+             f"reproduce its objective values: continuum-sim evaluate {folder}/best/trial_{trial}.toml",
+             "the lines below are read back by continuum-sim evaluate (key: JSON); the tables after them are the scenario"]
+    return lines + [f"{key}: {json.dumps(data[key], sort_keys=True, allow_nan=False)}" for key in HEADER_KEYS]
+
+
+def read_header(text: str) -> dict[str, Any] | None:
+    """The ``key: JSON`` lines of a best design's header (``header_lines``); None when the file has no such header."""
+    import json
+
+    out: dict[str, Any] = {}
+    for line in text.splitlines():
+        if not line.startswith("#"):
+            if line.strip():
+                break  # the header is the comment block at the top
+            continue
+        key, sep, value = line[1:].strip().partition(": ")
+        if sep and key in HEADER_KEYS:
+            try:
+                out[key] = json.loads(value)
+            except json.JSONDecodeError:
+                raise ConfigError(f"header.{key}", f"is not valid JSON ({value[:60]!r}); the file's header was edited") from None
+    return out if "evaluation" in out else None
+
+
+def header_spec(base: Any, header: dict[str, Any], evaluation: Any) -> tuple[OptimizeSpec, list[Params]]:
+    """An ``OptimizeSpec`` holding what the study aggregated a design with (objectives, constraints, robustness),
+    rebuilt from a best design's header over ``base``, and the robustness samples' values."""
+    from .spec import Bound, Objective, Optimizer, Robustness, Uncertain
+
+    try:
+        objectives = tuple(Objective(o["metric"], o["direction"], o["aggregate"], float(o["q"])) for o in header.get("objectives", []))
+        constraints = tuple(Bound(c["metric"], c.get("min"), c.get("max")) for c in header.get("constraints", []))
+        samples: list[Params] = [tuple((str(p), v) for p, v in sample) for sample in header.get("samples", [])]
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ConfigError("header", f"cannot read the study's objectives, constraints or samples ({exc}); the file's header was edited") from None
+    paths = tuple(dict.fromkeys(p for sample in samples for p, _ in sample))
+    robustness = Robustness(len(samples), tuple(Uncertain(p, 0.0, 1.0, False) for p in paths), header.get("min_success"))
+    spec = OptimizeSpec(base, (), objectives, constraints, robustness, Optimizer(), evaluation)
+    return spec, samples or [()]

@@ -9,8 +9,9 @@ each evaluation finishes, which records it before anything else happens.
   generation. A worker that dies breaks the pool; the evaluations then in flight are re-run
   through ``backends.run_processes`` (one at a time in fresh pools), so only the one that
   kills its process is recorded as failed, and the study goes on with a new pool.
-* ray: each generation through ``backends.run_ray`` (its cluster connection, package
-  shipping and failure handling), so the same spec runs on a cluster.
+* ray: one ``backends.RaySession`` for the whole study (connected once, at the first
+  generation, with warm workers kept across generations; its package shipping and failure
+  handling), so the same spec runs on a cluster.
 """
 
 from __future__ import annotations
@@ -63,16 +64,22 @@ class LocalPool:
 
 
 class RayPool:
-    """Each generation as one ``backends.run_ray`` call (local Ray instance or the cluster at ``address``)."""
+    """One ``backends.RaySession`` (local Ray instance or the cluster at ``address``) for every generation of the study."""
 
     def __init__(self, workers: int | None, address: str | None) -> None:
         self.workers, self.address = workers, address
+        self.session = backends.RaySession(workers, address)
+
+    @property
+    def worker_startup_s(self) -> float | None:
+        """Seconds to start the warm workers (not part of any evaluation's cost); None before the first generation."""
+        return self.session.worker_startup_s
 
     def run(self, spec: SweepSpec, variants: Sequence[Variant], on_result: OnResult) -> None:
-        backends.run_ray(spec, variants, self.workers, self.address, None, on_result)
+        self.session.run(spec, variants, None, on_result)
 
-    def close(self, abort: bool = False) -> None:
-        pass
+    def close(self, abort: bool = False) -> None:  # noqa: ARG002 - a Ray session stops the same way either way
+        self.session.close()
 
 
 @contextlib.contextmanager

@@ -1,10 +1,12 @@
-"""A design study's report, rebuilt from the journal and the records after every run.
+"""A design study's report, rebuilt from the Optuna study and the records after every run.
 
 Layout (beside the Optuna ``study.journal`` and the evaluations' store ``evaluations/``)::
 
     <out>/trials.csv        one row per trial: design, objectives, success probability, constraints, failure
-    <out>/pareto.csv        the feasible non-dominated designs (the best one for a single objective)
-    <out>/best/trial_<n>.toml  each of them as a scenario TOML (continuum-sim run --config)
+    <out>/pareto.csv        the feasible non-dominated designs (Optuna's ``study.best_trials``)
+    <out>/trials.parquet, pareto.parquet  the same tables, when pyarrow is installed
+    <out>/best/trial_<n>.toml  each of them as a scenario TOML (continuum-sim run --config), headed by
+                            what reproduces its objectives (``design.header_lines``: continuum-sim evaluate)
     <out>/summary.json      counts, the spec's objectives and the best designs, for people and the report renderer
     <out>/plots/pareto.png  objectives of every trial, the front drawn (one objective: value per trial, best so far)
     <out>/plots/history.png each objective and the success probability against the trial number
@@ -19,9 +21,11 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ..configio import atomic_write_text, from_dict
-from .design import config_dict, design_params
+from ..configio import atomic_write_bytes, atomic_write_text, dumps_toml, from_dict, to_dict
+from .design import config_dict, design_params, header_lines, robustness_samples
 from .spec import SUCCESS, OptimizeSpec
+
+PARQUET_MISSING = "pyarrow is not installed: trials.parquet and pareto.parquet were not written (pip install pyarrow)"
 
 
 def dominates(a: list[float], b: list[float], directions: list[str]) -> bool:
@@ -32,19 +36,16 @@ def dominates(a: list[float], b: list[float], directions: list[str]) -> bool:
 
 
 def pareto_indices(points: list[list[float]], directions: list[str]) -> list[int]:
-    """Indices of the non-dominated points (duplicates all kept)."""
+    """Indices of the non-dominated points (duplicates all kept), for tables without an Optuna study (``compare``).
+
+    It agrees with Optuna's ``study.best_trials`` on a study's feasible completed trials
+    (tests/test_optimize.py checks it), which is what the report uses.
+    """
     return [i for i, p in enumerate(points) if not any(dominates(q, p, directions) for j, q in enumerate(points) if j != i)]
 
 
 def feasible(trial: Any) -> bool:
     return all(c <= 0.0 for c in trial.user_attrs.get("constraints", [0.0]))
-
-
-def front(spec: OptimizeSpec, trials: list[Any]) -> list[Any]:
-    """The feasible completed trials that no other feasible completed trial dominates."""
-    done = [t for t in trials if t.state.name == "COMPLETE" and feasible(t)]
-    keep = pareto_indices([list(t.values) for t in done], spec.directions)
-    return [done[i] for i in keep]
 
 
 def _csv(rows: list[dict[str, Any]], columns: list[str]) -> str:
@@ -71,24 +72,63 @@ def _row(spec: OptimizeSpec, trial: Any, records: dict[str, dict[str, Any]]) -> 
     return row
 
 
-def write_report(spec: OptimizeSpec, trials: list[Any], records: dict[str, dict[str, Any]], root: Path) -> dict[str, Any]:
-    """Write trials.csv, pareto.csv, best/*.toml, summary.json and plots/; returns the summary."""
+def write_parquet(rows: list[dict[str, Any]], columns: list[str], path: Path) -> bool:
+    """``rows`` as a Parquet table beside the CSV (numbers as float64, text as strings); False when pyarrow is missing."""
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:
+        return False
+    data = {}
+    for c in columns:
+        values = [row.get(c) for row in rows]
+        if any(isinstance(v, str) for v in values):
+            data[c] = pa.array([None if v is None else str(v) for v in values], type=pa.string())
+        else:
+            data[c] = pa.array([None if v is None else float(v) for v in values], type=pa.float64())
+    sink = pa.BufferOutputStream()
+    pq.write_table(pa.table(data), sink)
+    atomic_write_bytes(path, sink.getvalue().to_pybytes())
+    return True
+
+
+def _provenance(root: Path) -> dict[str, Any]:
+    try:
+        doc = json.loads((root / "provenance.json").read_text())
+    except (OSError, json.JSONDecodeError):
+        return {}
+    return doc if isinstance(doc, dict) else {}
+
+
+def write_report(spec: OptimizeSpec, trials: list[Any], records: dict[str, dict[str, Any]], root: Path, *,
+                 best: list[Any], study: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Write trials.csv/.parquet, pareto.csv/.parquet, best/*.toml, summary.json and plots/; returns the summary.
+
+    ``best``: the study's ``best_trials`` (Optuna's Pareto front; only feasible trials when the
+    study is constrained); ``study``: its name, storage and spec hash, for the summary and the
+    best designs' headers.
+    """
+    study = study or {}
     rows = [_row(spec, t, records) for t in trials]
     columns = ["trial", "state", "feasible", *[v.path for v in spec.variables], *[o.label for o in spec.objectives]]
     columns += [c for c in (SUCCESS, "constraint_violation", "evaluations", "failed_evaluations", "failure", "cpu_s") if c not in columns]
     atomic_write_text(root / "trials.csv", _csv(rows, columns))
-    best = front(spec, trials)
     best_rows = [r for r in rows if r["trial"] in {t.number for t in best}]
     atomic_write_text(root / "pareto.csv", _csv(best_rows, columns))
+    parquet = write_parquet(rows, columns, root / "trials.parquet") and write_parquet(best_rows, columns, root / "pareto.parquet")
     best_dir = root / "best"
     best_dir.mkdir(exist_ok=True)
     for stale in best_dir.glob("trial_*.toml"):
         stale.unlink()
     configs = {}
+    provenance = _provenance(root)
+    samples = robustness_samples(spec) if spec.robust else []
     for t in best:
         path = best_dir / f"trial_{t.number}.toml"
         config = from_dict(type(spec.base), config_dict(spec, design_params(spec, t.params)))
-        config.save_toml(path)
+        header = header_lines(spec, trial=t.number, values=list(t.values), success=t.user_attrs.get(SUCCESS), samples=samples,
+                              folder=str(root), study=study, provenance=provenance)
+        atomic_write_text(path, "".join(f"# {line}\n" for line in header) + "\n" + dumps_toml(to_dict(config)))
         configs[t.number] = str(path.relative_to(root))
     states = {s: sum(1 for t in trials if t.state.name == s) for s in ("COMPLETE", "FAIL", "RUNNING")}
     failures: dict[str, int] = {}
@@ -116,7 +156,11 @@ def write_report(spec: OptimizeSpec, trials: list[Any], records: dict[str, dict[
         "failures": failures,
         "best": [{"trial": t.number, "params": dict(t.params), "values": dict(zip([o.label for o in spec.objectives], t.values)),
                   SUCCESS: t.user_attrs.get(SUCCESS), "config": configs[t.number]} for t in best],
-        "files": {"trials": "trials.csv", "pareto": "pareto.csv", "plots": ["plots/pareto.png", "plots/history.png"]},
+        "files": {"trials": "trials.csv", "pareto": "pareto.csv", "plots": ["plots/pareto.png", "plots/history.png"],
+                  **({"trials_parquet": "trials.parquet", "pareto_parquet": "pareto.parquet"} if parquet else {})},
+        "notes": [] if parquet else [PARQUET_MISSING],
+        "optuna": {"study_name": study.get("name"), "storage": study.get("storage"), "spec_sha256": study.get("spec_sha256")},
+        "worker_startup_s": study.get("worker_startup_s"),  # Ray's warm workers starting, apart from every evaluation's cost
     }
     atomic_write_text(root / "summary.json", json.dumps(summary, indent=1, sort_keys=True, allow_nan=False, default=_plain))
     _plots(spec, trials, best, root / "plots")

@@ -417,3 +417,27 @@ def load_spec(path: str | os.PathLike[str]) -> OptimizeSpec:
         return parse_spec(data, path.parent, text)
     except ConfigError as exc:
         raise exc.under(f"{path}: ") from None
+
+
+def with_optimizer(spec: OptimizeSpec, *, trials: int | None = None, seed: int | None = None) -> OptimizeSpec:
+    """``spec`` with ``optimizer.trials`` and/or ``optimizer.seed`` replaced (``--trials``, ``--seed``), checked as the spec's own.
+
+    The spec file stays as written; the study's identity (what a folder must match to be
+    resumed) takes the new values, so another seed is another study.
+    """
+    import dataclasses
+
+    opt = spec.optimizer
+    if trials is not None:
+        require_int("--trials", trials, 1, MAX_TRIALS)
+        if opt.sampler == "grid":
+            points = math.prod(len(v.grid_values()) for v in spec.variables)
+            if trials > points:
+                raise ConfigError("--trials", f"must satisfy 1 <= trials <= {points}, the grid's point count (got {trials})")
+        if trials * spec.n_samples > 100_000:
+            raise ConfigError("--trials", f"{trials} trials x {spec.robustness.samples} samples is more than 100000 evaluations")
+        opt = dataclasses.replace(opt, trials=trials)
+    if seed is not None:
+        require_int("--seed", seed, 0, 2**31 - 1)
+        opt = dataclasses.replace(opt, seed=seed)
+    return dataclasses.replace(spec, optimizer=opt)

@@ -1,10 +1,15 @@
 """Run a design study: Optuna asks for designs, the sweep machinery evaluates them, the study resumes.
 
-Storage: ``<out>/study.journal``, an Optuna journal file (every ask, parameter and tell
-appended as it happens), and ``<out>/evaluations/``, the sweep store of the evaluations
-(``sweep.json`` the study's identity, which refuses a different study; ``records/<id>.json``
-one per finished evaluation, written atomically by the driver; ``log.jsonl`` one line per
-evaluation run, the audit trail of "no evaluation twice"). The report files sit at the top.
+Storage: the Optuna study (every ask, parameter and tell, the objectives' names) lives in
+Optuna's own storage: by default ``<out>/study.journal``, a journal file appended as it
+happens; ``storage`` names any other (an RDB URL such as ``sqlite:///studies.db`` or a
+PostgreSQL/MySQL server, or another journal file path), ``study_name`` the study in it.
+The project keeps ``<out>/evaluations/``, the sweep store of the evaluations (``sweep.json``
+the study's identity, which refuses a different study; ``records/<id>.json`` one per finished
+evaluation, design x robustness sample, written atomically by the driver; ``log.jsonl`` one
+line per evaluation run, the audit trail of "no evaluation twice"): Optuna records trials, not
+the evaluations inside one, so this is what lets a killed trial's finished evaluations be
+reused and a design proposed twice be evaluated once. The report files sit at the top.
 
 Generations: the study asks ``optimizer.batch`` designs at a time, evaluates them all (each
 design × each robustness sample is one evaluation on the pool), tells Optuna each design's
@@ -22,10 +27,13 @@ flight or not started run. A trial that was told is never touched again.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
+import re
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -34,14 +42,15 @@ import numpy as np
 
 from ..configio import ConfigError
 from ..sweep.runner import preflight
-from ..sweep.spec import Variant
-from ..sweep.store import ResultStore, write_provenance
+from ..sweep.spec import Variant, variant_id
+from ..sweep.store import FORMAT_VERSION, ResultStore, write_provenance
 from .design import Params, StudySweep, check_config, check_designs, design_params, evaluation_variant, robustness_samples, study_sweep
 from .spec import SUCCESS, OptimizeSpec
 
 Backend = Literal["local", "ray"]
-STUDY_NAME = "optimize"
+STUDY_NAME = "optimize"  # the study's name in the default journal (--study-name: another)
 JOURNAL = "study.journal"
+IDENTITY_ATTR = "continuum_sim.identity"  # study user attribute: hash of the spec the study was made for
 EVALUATIONS = "evaluations"  # the sweep store's folder inside the study folder
 AUDIT = "log.jsonl"  # in it
 
@@ -162,16 +171,88 @@ def _tell(spec: OptimizeSpec, study: Any, trial_id: int, number: int, outcome: d
         study.tell(number, outcome["values"])
 
 
-def open_study(spec: OptimizeSpec, root: Path) -> Any:
-    import optuna
-    from optuna.storages import JournalStorage
+def storage_label(storage: str | None) -> str:
+    """``storage`` as it may be shown and recorded: an RDB URL's password masked; None is the folder's journal."""
+    if storage is None:
+        return JOURNAL
+    return re.sub(r"(://[^:/@]+):[^@]*@", r"\1:***@", storage)
+
+
+def open_storage(root: Path, storage: str | None) -> Any:
+    """Optuna's storage for the study: ``<root>/study.journal`` by default; an RDB URL (``scheme://...``); else a journal file path."""
+    from optuna.storages import JournalStorage, RDBStorage
     from optuna.storages.journal import JournalFileBackend
 
+    if storage is None:
+        return JournalStorage(JournalFileBackend(str(root / JOURNAL)))
+    try:
+        if "://" in storage:
+            return RDBStorage(storage)
+        return JournalStorage(JournalFileBackend(storage))
+    except Exception as exc:  # noqa: BLE001 - a bad URL, a missing database driver, an unreachable server: one line
+        text = " ".join(str(exc).split())[:200]
+        raise ConfigError("--storage", f"cannot open {storage_label(storage)}: {type(exc).__name__}: {text}") from None
+
+
+def spec_hash(spec: OptimizeSpec) -> str:
+    """Hash of what the Optuna study must belong to: the spec's identity without the trial budget (--trials may grow it)."""
+    identity = spec.identity()
+    identity["optimizer"] = {k: v for k, v in identity["optimizer"].items() if k != "trials"}
+    return hashlib.sha256(json.dumps(identity, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def open_study(spec: OptimizeSpec, root: Path, storage: str | None = None, study_name: str | None = None) -> Any:
+    """The study's Optuna study (created or loaded) with its objectives' names set (``trials_dataframe``, optuna-dashboard).
+
+    ``storage``: None for ``<root>/study.journal``; ``study_name``: default ``optimize`` in the
+    folder's journal, the folder's name in another storage. A study of that name made for
+    another spec is refused (``ConfigError`` on ``--study-name``).
+    """
+    import optuna
+
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    storage = JournalStorage(JournalFileBackend(str(root / JOURNAL)))
-    return optuna.create_study(storage=storage, study_name=STUDY_NAME, directions=list(spec.directions),  # type: ignore[arg-type]  # checked: minimize | maximize
-                               load_if_exists=True,
-                               sampler=make_sampler(spec, 0))
+    name = study_name or (STUDY_NAME if storage is None else root.resolve().name)
+    study = optuna.create_study(storage=open_storage(root, storage), study_name=name, directions=list(spec.directions),  # type: ignore[arg-type]  # checked: minimize | maximize
+                                load_if_exists=True, sampler=make_sampler(spec, 0))
+    mine = spec_hash(spec)
+    theirs = study.user_attrs.get(IDENTITY_ATTR)
+    if theirs is not None and theirs != mine:
+        raise ConfigError("--study-name", f"study {name!r} in {storage_label(storage)} belongs to another spec; choose another --study-name")
+    if [d.name.lower() for d in study.directions] != list(spec.directions):
+        raise ConfigError("--study-name", f"study {name!r} in {storage_label(storage)} has other objectives; choose another --study-name")
+    if theirs is None:
+        study.set_user_attr(IDENTITY_ATTR, mine)
+    labels = [o.label for o in spec.objectives]
+    if study.metric_names != labels:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+            study.set_metric_names(labels)
+    return study
+
+
+def _follow_budget(root: Path, sweep: StudySweep) -> None:
+    """Let ``--trials`` grow or shrink a study's budget: a folder whose identity differs from ``sweep``'s
+    only in ``optimizer.trials`` takes the new identity (any other difference is refused by the store)."""
+    marker = root / EVALUATIONS / "sweep.json"
+    if not marker.exists():
+        return
+    try:
+        stored = json.loads(marker.read_text())
+    except (OSError, json.JSONDecodeError):
+        return  # the store names the problem
+    identity = {"format": FORMAT_VERSION, **sweep.identity()}
+    old = stored.get("identity")
+    if not isinstance(old, dict) or old == identity:
+        return
+    try:
+        comparable = json.loads(json.dumps(old))
+        comparable["grid"]["optimizer"]["trials"] = identity["grid"]["optimizer"]["trials"]
+    except (KeyError, TypeError):
+        return
+    if comparable == json.loads(json.dumps(identity, default=str)):
+        from ..configio import atomic_write_text
+
+        atomic_write_text(marker, json.dumps({**stored, "identity": identity}, indent=1, sort_keys=True))
 
 
 def run_study(
@@ -183,10 +264,15 @@ def run_study(
     address: str | None = None,
     progress: bool = True,
     spec_path: str | os.PathLike[str] | None = None,
+    storage: str | None = None,
+    study_name: str | None = None,
 ) -> StudyResult:
     """Run (or resume) the study of ``spec`` in folder ``out`` until its trial budget is told; then write the report.
 
     ``spec_path``: the spec file, hashed into ``provenance.json`` (written at the start and at the end).
+    ``storage``, ``study_name``: where Optuna keeps the study (``open_study``); the evaluations'
+    records stay in ``out`` whatever the storage. One driver per study: the folder's lock keeps a
+    second one out (distributing a study is the evaluations' business: ``backend = "ray"``).
     """
     import optuna
     from tqdm import tqdm
@@ -209,11 +295,14 @@ def run_study(
         raise ConfigError("--out", f"{root} exists and is not a study folder; use another --out")
     store = ResultStore(root / EVALUATIONS)
     budget = spec.optimizer.trials
-    with store.lock():
+    with pools.open_pool(backend, workers, address) as pool, store.lock():
+        if address is not None and isinstance(pool, pools.RayPool):
+            pool.session.connect()  # a refused connection (authentication, version) is one line before the folder is touched
+        _follow_budget(root, sweep)
         store.prepare(sweep)
         write_provenance(root, "optimize", spec, spec_path)
         records = store.load()
-        study = open_study(spec, root)
+        study = open_study(spec, root, storage, study_name)
         running = optuna.trial.TrialState.RUNNING
         n_resumed = sum(1 for t in study.get_trials(deepcopy=False) if t.state == running)
         told = sum(1 for t in study.get_trials(deepcopy=False) if t.state.is_finished())
@@ -221,23 +310,25 @@ def run_study(
                    dynamic_ncols=True)
         counts = {"run": 0, "reused": 0}
         try:
-            with pools.open_pool(backend, workers, address) as pool:
-                while True:
-                    trials = study.get_trials(deepcopy=False)
-                    open_trials = [t for t in trials if t.state == running]
-                    if not open_trials:
-                        if len(trials) >= budget:
-                            break
-                        n = len(trials)
-                        for number in range(n, min(budget, n + spec.optimizer.batch - n % spec.optimizer.batch)):
-                            study.sampler = make_sampler(spec, number)
-                            suggest(spec, study.ask())
-                        continue
-                    _generation(spec, study, open_trials, samples, sweep, store, records, pool, backend, counts, bar)
+            while True:
+                trials = study.get_trials(deepcopy=False)
+                open_trials = [t for t in trials if t.state == running]
+                if not open_trials:
+                    if len(trials) >= budget:
+                        break
+                    n = len(trials)
+                    for number in range(n, min(budget, n + spec.optimizer.batch - n % spec.optimizer.batch)):
+                        study.sampler = make_sampler(spec, number)
+                        suggest(spec, study.ask())
+                    continue
+                _generation(spec, study, open_trials, samples, sweep, store, records, pool, backend, counts, bar)
         finally:
             bar.close()
         trials = study.get_trials(deepcopy=False)
-        summary = write_report(spec, trials, records, root)
+        best = sorted(study.best_trials, key=lambda t: t.number)  # Optuna's Pareto front (feasible trials when constrained)
+        summary = write_report(spec, trials, records, root, best=best,
+                               study={"name": study.study_name, "storage": storage_label(storage), "spec_sha256": spec_hash(spec),
+                                      "worker_startup_s": getattr(pool, "worker_startup_s", None)})
         write_provenance(root, "optimize", spec, spec_path)
     n_failed = sum(1 for t in trials if t.state == optuna.trial.TrialState.FAIL)
     return StudyResult(root, len(trials), n_resumed, counts["run"], counts["reused"], n_failed, summary)
@@ -298,3 +389,26 @@ def _generation(spec: OptimizeSpec, study: Any, open_trials: list[Any], samples:
     settle()
     if plans:  # pragma: no cover - every evaluation returns a result (failures included)
         raise RuntimeError(f"trials {sorted(plans)} still lack evaluations after their generation")
+
+
+def evaluate_design(spec: OptimizeSpec, config: Any, samples: list[Params]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """Evaluate one design as its study did: each robustness sample's evaluation, then ``aggregate``.
+
+    ``config``: the design's scenario (a best design's TOML: the study's base with the design's
+    values set); ``samples``: the robustness samples' values (``[()]`` without robustness).
+    The same path as the study's pool (``sweep.backends.payload`` into
+    ``sweep.worker.evaluate_payload``, in this process), each result kept as the store keeps
+    it (non-finite metrics null), so the objective values equal the recorded ones exactly.
+    """
+    from ..sweep import backends
+    from ..sweep.worker import evaluate_payload
+
+    sweep = StudySweep(config, (), spec.evaluation, ())
+    records = []
+    for k, sample in enumerate(samples):
+        variant = Variant(k, sample, variant_id(sample, spec.evaluation))
+        result = evaluate_payload(backends.payload(sweep, variant, None))
+        metrics = {key: None if isinstance(v, float) and not math.isfinite(v) else v for key, v in (result.get("metrics") or {}).items()}
+        records.append({"variant_id": variant.variant_id, "params": dict(sample), "status": result["status"], "error": result.get("error"),
+                        "metrics": metrics, "cpu_s": result.get("cpu_s")})
+    return records, aggregate(spec, records)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +36,10 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
             top = sorted(indices.items(), key=lambda kv: -(kv[1][key] or 0.0))[:3]
             print(f"  {metric}: " + ", ".join(f"{p} {key} {v[key]:.3g}" for p, v in top))
         print(f"  strongest overall: {', '.join(summary['strongest'])}; report: summary.json, indices.csv, plots/")
+    for note in summary.get("notes", []):
+        print(f"  note: {note}")
+    for warning in summary.get("warnings", []):  # also in summary.json and summary.md
+        print(f"continuum-sim sensitivity: warning: {warning}", file=sys.stderr)
     return 0
 
 

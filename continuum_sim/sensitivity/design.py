@@ -135,3 +135,55 @@ def strength(spec: SensitivitySpec, analyses: dict[str, dict[str, Any]]) -> dict
 def _num(value: Any) -> float | None:
     v = float(value)
     return v if math.isfinite(v) else None
+
+
+MORRIS_MIN_TRAJECTORIES = 10  # r below this: μ*'s bootstrap intervals are unstable (SALib's examples use r >= 10)
+SOBOL_MIN_SAMPLES = 64  # N below this: the bootstrap intervals of S1 and S_T are not to be trusted
+SOBOL_MIN_INDEX = 0.05  # an index this large whose interval reaches past zero is not resolved
+
+
+def _next_power_of_2(n: float) -> int:
+    return 1 << max(0, math.ceil(math.log2(max(n, 1.0))))
+
+
+def sample_size_warnings(spec: SensitivitySpec, analyses: dict[str, dict[str, Any]]) -> list[str]:
+    """Where the sample is too small for its confidence intervals, and the size that would do.
+
+    Morris: r < 10 trajectories (or fewer than that left once failed evaluations are dropped).
+    Sobol': N < 64, or an index that matters (≥ 0.05) with a 95 % half-width larger than itself;
+    half-widths shrink as 1/√N, so the size that brings it to half the index is named.
+    """
+    k = len(spec.factors)
+    out: list[str] = []
+    if spec.method == "morris":
+        r = spec.morris.trajectories
+        if r < MORRIS_MIN_TRAJECTORIES:
+            out.append(f"Morris r = {r} trajectories is too few for μ*'s 95 % intervals; r = {MORRIS_MIN_TRAJECTORIES} would do "
+                       f"({MORRIS_MIN_TRAJECTORIES * (k + 1)} runs for {k} parameters)")
+        for metric, analysis in analyses.items():
+            used = analysis.get("trajectories_used")
+            if used is not None and used < min(r, MORRIS_MIN_TRAJECTORIES):
+                out.append(f"{metric}: only {used} of {r} trajectories have every evaluation (failed ones are dropped); "
+                           f"its intervals rest on {used}")
+    elif spec.method == "sobol":
+        n = spec.sobol.samples
+        per = 2 * k + 2 if spec.sobol.second_order else k + 2
+        if n < SOBOL_MIN_SAMPLES:
+            out.append(f"Sobol' N = {n} is too small for the indices' 95 % intervals; N = {SOBOL_MIN_SAMPLES} would do "
+                       f"({SOBOL_MIN_SAMPLES * per} runs for {k} parameters)")
+        for metric, analysis in analyses.items():
+            worst: tuple[float, str, str, float, float] | None = None
+            for path, v in (analysis.get("indices") or {}).items():
+                for name in ("ST", "S1"):
+                    index, conf = v.get(name), v.get(f"{name}_conf")
+                    if index is None or conf is None or index < SOBOL_MIN_INDEX or conf <= index:
+                        continue
+                    ratio = conf / index
+                    if worst is None or ratio > worst[0]:
+                        worst = (ratio, path, name, index, conf)
+            if worst is not None:
+                ratio, path, name, index, conf = worst
+                need = min(1 << 16, max(_next_power_of_2(n * (2.0 * ratio) ** 2), SOBOL_MIN_SAMPLES))
+                out.append(f"{metric}: {name} of {path} is {index:.3g} ± {conf:.3g}, a 95 % half-width larger than the index; "
+                           f"N = {need} would bring it to about half ({need * per} runs)")
+    return out

@@ -3,9 +3,12 @@
 Files (besides the sweep store's ``sweep.json``, ``spec.toml`` and ``records/``):
 
 * ``samples.csv``: one row per sample-matrix row: parameter values, status, metrics;
+  ``samples.parquet`` the same, when pyarrow is installed (else a note in summary.json);
 * ``indices.csv``: one row per (metric, parameter): μ, μ*, σ, μ* 95 % half-width (Morris)
   or S1, S_T and their half-widths (Sobol');
-* ``summary.json``: method, counts, per-metric indices, the parameters ranked by strength;
+* ``summary.json``: method, counts, per-metric indices, the parameters ranked by strength, and
+  ``warnings``: where the sample is too small for its intervals (``design.sample_size_warnings``);
+* ``summary.md``: the indices with their 95 % intervals as a table, the warnings above it;
 * ``plots/indices.png``: μ* with σ per metric (Morris; S1 and S_T for Sobol'), strongest on top;
 * ``plots/outcome_map.png``: every metric over the two strongest parameters, the samples
   that did not complete the task marked.
@@ -22,10 +25,12 @@ from typing import Any
 
 import numpy as np
 
-from ..configio import atomic_write_figure, atomic_write_text
+from ..configio import atomic_write_bytes, atomic_write_figure, atomic_write_text
 from . import uncertainty
-from .design import analyze_morris, analyze_sobol, outputs, sample_matrix, strength
+from .design import analyze_morris, analyze_sobol, outputs, sample_matrix, sample_size_warnings, strength
 from .spec import OUTCOME_METRIC, SensitivitySpec
+
+PARQUET_MISSING = "pyarrow is not installed: samples.parquet was not written (pip install pyarrow)"
 
 
 def _cell(value: Any) -> str:
@@ -42,6 +47,26 @@ def _csv(header: list[str], rows: list[list[Any]]) -> str:
     return buffer.getvalue()
 
 
+def write_parquet(header: list[str], rows: list[list[Any]], path: Path) -> bool:
+    """The table as Parquet beside its CSV (numbers as float64, text as strings); False when pyarrow is missing."""
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:
+        return False
+    data = {}
+    for c, name in enumerate(header):
+        values = [row[c] for row in rows]
+        if any(isinstance(v, str) for v in values):
+            data[name] = pa.array([None if v is None else str(v) for v in values], type=pa.string())
+        else:
+            data[name] = pa.array([None if v is None else float(v) for v in values], type=pa.float64())
+    sink = pa.BufferOutputStream()
+    pq.write_table(pa.table(data), sink)
+    atomic_write_bytes(path, sink.getvalue().to_pybytes())
+    return True
+
+
 def write_report(spec: SensitivitySpec, row_ids: list[str], records: dict[str, dict[str, Any]], root: Path) -> dict[str, Any]:
     """Analyse what is recorded and write the report files; returns the summary."""
     matrix = sample_matrix(spec)
@@ -56,6 +81,7 @@ def write_report(spec: SensitivitySpec, row_ids: list[str], records: dict[str, d
         table.append([i, vid, *values[i].tolist(), status, (record or {}).get("error") or "",
                       *[metrics.get(m) for m in spec.metrics], (record or {}).get("cpu_s")])
     atomic_write_text(root / "samples.csv", _csv(header, table))
+    parquet = write_parquet(header, table, root / "samples.parquet")
 
     analyses: dict[str, dict[str, Any]] = {}
     if spec.method == "uncertainty":
@@ -100,8 +126,10 @@ def write_report(spec: SensitivitySpec, row_ids: list[str], records: dict[str, d
         "analysis": analyses,
         "strength": {p: ranking[p] for p in ranked},
         "strongest": ranked[:2],
-        "files": ["samples.csv", "indices.csv", "summary.json", "summary.md",
+        "files": ["samples.csv", *(["samples.parquet"] if parquet else []), "indices.csv", "summary.json", "summary.md",
                   *(["plots/indices.png"] if spec.method != "uncertainty" else []), "plots/outcome_map.png"],
+        "warnings": sample_size_warnings(spec, analyses),
+        "notes": [] if parquet else [PARQUET_MISSING],
     }
     atomic_write_text(root / "summary.json", json.dumps(summary, indent=1, allow_nan=False, ensure_ascii=False))
     atomic_write_text(root / "summary.md", summary_markdown(summary))
@@ -127,8 +155,11 @@ def summary_markdown(summary: dict[str, Any]) -> str:
         "",
         ("μ* ± 95 % (σ) per metric: the mean absolute elementary effect, i.e. the metric's change per full (log) range "
           "of the parameter, measured over steps of 2/3 of that range (4 levels); σ large against μ*: nonlinear or interacting"
-         if morris else "S_T (S1) per metric: the parameter's total (first-order) share of the metric's variance"),
+         if morris else "S_T ± 95 % (S1 ± 95 %) per metric: the parameter's total (first-order) share of the metric's variance, "
+                        "with the bootstrap half-widths"),
         "",
+        *[f"- **Warning:** {w}." for w in summary.get("warnings", [])],
+        *([""] if summary.get("warnings") else []),
         "| parameter | range | strength | " + " | ".join(f"`{m}`" for m in metrics) + " |",
         "|---|---|---|" + "---|" * len(metrics),
     ]
@@ -145,7 +176,7 @@ def summary_markdown(summary: dict[str, Any]) -> str:
             if morris:
                 cells.append(f"{_g(v['mu_star'])} ± {_g(v['mu_star_conf'])} ({_g(v['sigma'])})")
             else:
-                cells.append(f"{_g(v['ST'])} ({_g(v['S1'])})")
+                cells.append(f"{_g(v['ST'])} ± {_g(v['ST_conf'])} ({_g(v['S1'])} ± {_g(v['S1_conf'])})")
         low, high = r["range"]
         lines.append(f"| `{path}` | {low:g} – {high:g}{' log' if r['log'] else ''} | {share:.2f} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"

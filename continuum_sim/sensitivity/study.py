@@ -49,6 +49,7 @@ class StudyResult:
     n_run: int
     n_failed: int
     summary: dict[str, Any]
+    worker_startup_s: float | None = None  # Ray: starting the warm workers (not part of any variant's cost)
 
 
 def study_sweep(spec: SensitivitySpec) -> tuple[StudySweep, list[str]]:
@@ -113,10 +114,8 @@ def run_study(
     preflight(backend, workers)
     sweep, row_ids = study_sweep(spec)
     check_samples(sweep)
-    if backend == "ray" and address is not None:
-        backends.probe_address(address)
     store = ResultStore(out)
-    with store.lock():
+    with backends.study_session(backend, workers, address) as session, store.lock():  # Ray: connected before the folder is touched
         store.prepare(sweep)
         write_provenance(store.root, "sensitivity", spec, spec_path)
         wanted = {v.variant_id for v in sweep.samples}
@@ -126,6 +125,7 @@ def run_study(
         bar = tqdm(total=len(sweep.samples), initial=n_skipped, desc=f"sensitivity ({spec.method})", unit="run",
                    disable=not progress, dynamic_ncols=True)
         failed_now = 0
+        startup_s = None
 
         def on_result(variant: Variant, result: dict[str, Any]) -> None:
             nonlocal failed_now
@@ -137,8 +137,9 @@ def run_study(
 
         try:
             if pending:
-                if backend == "ray":
-                    backends.run_ray(sweep, pending, workers, address, None, on_result)
+                if session is not None:
+                    session.run(sweep, pending, None, on_result)
+                    startup_s = session.worker_startup_s
                 else:
                     backends.run_processes(sweep, pending, workers or backends.default_workers(), None, on_result)
         finally:
@@ -146,4 +147,4 @@ def run_study(
         summary = write_report(spec, row_ids, records, store.root)
         write_provenance(store.root, "sensitivity", spec, spec_path)
     n_failed = sum(1 for r in records.values() if r["status"] != "ok")
-    return StudyResult(store.root, len(row_ids), len(sweep.samples), n_skipped, len(pending), n_failed, summary)
+    return StudyResult(store.root, len(row_ids), len(sweep.samples), n_skipped, len(pending), n_failed, summary, startup_s)

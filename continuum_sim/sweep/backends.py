@@ -5,6 +5,10 @@ driver as each one finishes; the driver alone writes records, so a remote Ray wo
 never needs the sweep folder. No backend decides what a variant computes: that is
 ``worker.evaluate_payload`` (processes, Ray) or ``static.evaluate_static_shared``
 (shared model), and tests check they agree bit for bit.
+
+Ray is a ``RaySession``: a study connects once, whatever the number of ``run`` calls, and
+keeps one warm worker per CPU (``RayWorker``) for all of them; a refused connection is
+one line naming its cause (authentication, versions, an unreachable address).
 """
 
 from __future__ import annotations
@@ -12,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import re
 import signal
 import socket
 import sys
@@ -154,23 +159,40 @@ def run_shared(spec: SweepSpec, variants: Sequence[Variant], workers: int, on_re
 
 
 # --------------------------------------------------------------------------- Ray
+class _CapturedStderr:
+    """What was written to file descriptor 2 inside ``captured_stderr()``: Ray's C++ client logs there, past ``sys.stderr``."""
+
+    text = ""
+
+
 @contextlib.contextmanager
-def _quiet_stderr() -> Iterator[None]:
-    """File descriptor 2 to /dev/null for the duration (C++ logging bypasses ``sys.stderr``)."""
+def captured_stderr() -> Iterator[_CapturedStderr]:
+    """File descriptor 2 into a temporary file for the duration; its text in the yielded object afterwards.
+
+    Ray's client logs a line per connection retry (20 for an address that is not Ray, or a
+    cluster that refuses the token); those lines must not flood a study's terminal, but they
+    are the only place that names the cause, so they are kept for ``connection_error``.
+    """
+    import tempfile
+
+    captured = _CapturedStderr()
     try:
         sys.stderr.flush()
         saved = os.dup(2)
     except (OSError, ValueError):
-        yield
+        yield captured
         return
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 2)
-        yield
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-        os.close(devnull)
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield captured
+        finally:
+            with contextlib.suppress(OSError, ValueError):
+                sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            captured.text = sink.read(1 << 20).decode("utf-8", "replace")
 
 
 def _resolve(host: str, port: int) -> Any:
@@ -220,6 +242,294 @@ def probe_address(address: str, timeout: float | None = None) -> None:
         ) from None
 
 
+AUTH_HELP = "authentication failed: set RAY_AUTH_TOKEN or RAY_AUTH_TOKEN_PATH (ray get-auth-token on the head)"
+_AUTH_MARKERS = ("Unauthenticated", "InvalidAuthToken", "AuthenticationError", "authentication token", "Authentication token")
+_VERSIONS = re.compile(
+    r"cluster was started with:\s*Ray:\s*(\S+)\s*Python:\s*(\S+).*?was started with:\s*Ray:\s*(\S+)\s*Python:\s*(\S+)", re.S
+)
+
+
+def connection_error(address: str | None, exc: BaseException, ray_log: str = "") -> str:
+    """One line naming why ``ray.init`` failed: authentication, a version mismatch, or (else) Ray's own last word.
+
+    ``ray_log``: what Ray wrote to stderr meanwhile (``captured_stderr``); a refused token shows
+    only there, as one warning per retry, while the exception says "Failed to connect".
+    """
+    where = f"the Ray cluster at {address!r}" if address else "a local Ray instance"
+    text = f"{type(exc).__name__}: {exc}\n{ray_log}"
+    if any(marker in text for marker in _AUTH_MARKERS):
+        given = [name for name in ("RAY_AUTH_TOKEN", "RAY_AUTH_TOKEN_PATH") if os.environ.get(name)]
+        detail = f"the cluster refused the token from {given[0]}" if given else "no token given"
+        return f"cannot connect to {where}: {AUTH_HELP}; {detail}"
+    versions = _VERSIONS.search(text)
+    if versions or "Version mismatch" in text:
+        if versions:
+            ray_there, python_there, ray_here, python_here = versions.groups()
+            detail = f"the cluster runs Ray {ray_there} on Python {python_there}, this machine Ray {ray_here} on Python {python_here}"
+        else:
+            detail = "Ray or Python differ between the cluster and this machine"
+        return f"cannot connect to {where}: version mismatch: {detail}; install the same versions here and on every node"
+    said = [line.strip() for line in ray_log.splitlines() if line.strip() and " INFO " not in line]
+    last = f" (Ray: {' '.join(said[-1].split())[:200]})" if said else ""
+    return f"cannot connect to {where}: {describe(exc)}{last}"
+
+
+def _token_mode_from_environment() -> str | None:
+    """Token authentication on for this driver when a token is given but ``RAY_AUTH_MODE`` is not; returns the old value.
+
+    Ray sends a token to an explicit address only under ``RAY_AUTH_MODE=token``; a token put in
+    ``RAY_AUTH_TOKEN`` / ``RAY_AUTH_TOKEN_PATH`` is meant to be used, so setting it is enough here.
+    """
+    old = os.environ.get("RAY_AUTH_MODE")
+    if old is None and (os.environ.get("RAY_AUTH_TOKEN") or os.environ.get("RAY_AUTH_TOKEN_PATH")):
+        os.environ["RAY_AUTH_MODE"] = "token"
+        if "ray" in sys.modules:  # Ray reads its configuration once; re-read it (as Ray does when it enables the mode itself)
+            with contextlib.suppress(Exception):
+                import ray._raylet
+
+                ray._raylet.Config.initialize("")  # type: ignore[attr-defined]  # compiled module, no stubs
+    return old
+
+
+class RayWorker:
+    """One warm worker slot on the cluster (a Ray actor): imports the package once, then evaluates variants one by one.
+
+    A variant's recorded cost (``evaluate_payload``'s wall and CPU time) therefore never includes
+    a worker's start-up (process, runtime environment, imports); ``RaySession`` reports that apart.
+    """
+
+    def __init__(self) -> None:
+        start = time.perf_counter()
+        sys.setrecursionlimit(max(sys.getrecursionlimit(), 10_000))  # deep models, as in the local workers
+        warm_up()
+        self.startup_s = time.perf_counter() - start
+
+    def ready(self) -> tuple[str, int, float]:
+        return socket.gethostname(), os.getpid(), self.startup_s
+
+    def evaluate(self, payload: dict[str, Any]) -> dict[str, Any]:
+        return evaluate_payload(payload)
+
+
+def _log_stderr(line: str) -> None:
+    from tqdm import tqdm
+
+    tqdm.write(line, file=sys.stderr)  # above any progress bar
+
+
+PER_WORKER = 2  # variants queued on a worker: the next one is there when it finishes one
+
+
+class RaySession:
+    """One Ray connection and one set of warm workers for a whole study (``with RaySession(...) as ray:``).
+
+    The study's driver opens it once and calls ``run`` as often as it has variants (the
+    optimiser once per generation): connecting, shipping the package and starting workers
+    happen once. It connects on the first ``run`` (a study with nothing left to run never
+    connects) and logs ``ray: connected to ADDRESS (N CPUs)`` then, one line per study.
+
+    The driver ships this ``continuum_sim`` package to the workers (runtime_env
+    ``py_modules``), so the cluster runs exactly the driver's code; each node's Python needs
+    the same Ray and Python versions and the dependencies (MuJoCo, dm_control, numpy, scipy).
+
+    ``worker_startup_s``: seconds from starting the workers until the last was ready (not part
+    of any variant's cost). A worker that dies (segfault, out of memory, node lost) is replaced;
+    the variant it was running is tried once more, then recorded as failed.
+    """
+
+    def __init__(self, workers: int | None, address: str | None, log: Callable[[str], None] | None = None) -> None:
+        self.workers, self.address = workers, address
+        self.log = log or _log_stderr
+        self.worker_startup_s: float | None = None
+        self.cpus: int | None = None
+        self._ray: Any = None
+        self._auth_mode: str | None = None
+        self._actors: dict[int, Any] = {}  # slot -> actor handle
+        self._ready: set[int] = set()
+        self._starting: dict[Any, int] = {}  # ready() ref -> slot
+        self._startup_clock: float | None = None
+        self._last_ready_s: float | None = None
+        self._slots = 0
+
+    def __enter__(self) -> RaySession:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    # ------------------------------------------------------------ connection
+    def connect(self) -> None:
+        """Connect (once): a refused connection is one ``ConfigError`` line naming its cause."""
+        if self._ray is not None:
+            return
+        self._auth_mode = _token_mode_from_environment()
+        try:
+            import ray
+        except ImportError:
+            raise ConfigError("--backend", "ray is not installed; install it with pip install 'continuum_sim[ray]'") from None
+        import continuum_sim
+
+        runtime_env = {"py_modules": [continuum_sim], "env_vars": {"MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}}
+        init_kwargs: dict[str, Any] = {"runtime_env": runtime_env, "log_to_driver": False}
+        if self.address is None:
+            init_kwargs.update(num_cpus=self.workers or default_workers(), include_dashboard=False)
+        else:
+            probe_address(self.address)  # an unreachable cluster is one line in seconds, not a hang
+            init_kwargs["address"] = self.address
+        failure: Exception | None = None
+        with captured_stderr() as ray_log:
+            try:
+                ray.init(**init_kwargs)
+            except Exception as exc:  # noqa: BLE001 - classified below, from the exception and Ray's log
+                failure = exc
+        if failure is not None:
+            self._restore_auth_mode()
+            raise ConfigError("--address" if self.address else "--backend", connection_error(self.address, failure, ray_log.text)) from None
+        self._ray = ray
+        self.cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))
+        where = self.address or ray.get_runtime_context().gcs_address
+        self.log(f"ray: connected to {where} ({self.cpus} CPUs)")
+
+    def _restore_auth_mode(self) -> None:
+        if self._auth_mode is None:
+            os.environ.pop("RAY_AUTH_MODE", None)
+        else:
+            os.environ["RAY_AUTH_MODE"] = self._auth_mode
+
+    # ------------------------------------------------------------ workers
+    def _start_workers(self) -> None:
+        cpus = self.cpus or 1  # set by connect
+        self._slots = min(self.workers, cpus) if self.workers else cpus
+        if self.workers and self.workers > self._slots:
+            self.log(f"ray: --workers {self.workers} > the cluster's {self.cpus} CPUs; starting {self._slots} workers")
+        self._startup_clock = time.perf_counter()
+        for slot in range(self._slots):
+            self._start_worker(slot)
+
+    def _start_worker(self, slot: int) -> None:
+        actor = self._ray.remote(num_cpus=1, max_restarts=0)(RayWorker).remote()
+        self._actors[slot] = actor
+        self._starting[actor.ready.remote()] = slot
+
+    def _worker_started(self, ref: Any) -> None:
+        slot = self._starting.pop(ref)
+        try:
+            self._ray.get(ref)
+        except Exception as exc:  # noqa: BLE001 - its node lacks a dependency, runtime env failed, ...
+            self._actors.pop(slot, None)
+            if not self._actors:
+                raise ConfigError("--address" if self.address else "--backend", f"no Ray worker could start: {describe(exc)}") from None
+            self.log(f"ray: a worker could not start ({describe(exc)[:200]}); going on with {len(self._actors)}")
+        else:
+            self._ready.add(slot)
+            if self._startup_clock is not None:
+                self._last_ready_s = time.perf_counter() - self._startup_clock
+        if not self._starting:
+            self._report_startup()
+
+    def _report_startup(self) -> None:
+        """``worker_startup_s`` (once): until the last worker was ready, or the last ready one when the study ended first."""
+        if self.worker_startup_s is not None or self._last_ready_s is None:
+            return
+        self.worker_startup_s = self._last_ready_s
+        ready = f"{len(self._ready)}" if not self._starting else f"{len(self._ready)} of {len(self._ready) + len(self._starting)}"
+        rest = "" if not self._starting else "; the rest were still starting when the study ended"
+        self.log(f"ray: {ready} workers ready in {self.worker_startup_s:.1f} s (worker_startup_s; not part of any variant's cost){rest}")
+
+    def _replace_worker(self, slot: int) -> None:
+        self._ready.discard(slot)
+        actor = self._actors.pop(slot, None)
+        if actor is not None:
+            with contextlib.suppress(Exception):
+                self._ray.kill(actor)
+        self._start_worker(slot)
+
+    # ------------------------------------------------------------ variants
+    def run(self, spec: SweepSpec, variants: Sequence[Variant], run_root: str | None, on_result: OnResult) -> None:
+        """Evaluate ``variants`` on the warm workers; ``on_result`` in the driver as each finishes."""
+        if not variants:
+            return
+        self.connect()
+        if not self._actors:
+            self._start_workers()
+        ray = self._ray
+        queue = list(reversed(variants))
+        deaths: dict[str, int] = {}
+        running: dict[Any, tuple[int, Variant]] = {}
+        on_worker: dict[int, list[Any]] = {}  # slot -> its refs in submission order (a worker runs them in that order)
+        while queue or running:
+            for slot in sorted(self._ready):
+                mine = on_worker.setdefault(slot, [])
+                while queue and len(mine) < PER_WORKER:
+                    variant = queue.pop()
+                    ref = self._actors[slot].evaluate.remote(payload(spec, variant, run_root))
+                    running[ref] = (slot, variant)
+                    mine.append(ref)
+            done, _ = ray.wait(list(running) + list(self._starting), num_returns=1)
+            ref = done[0]
+            if ref in self._starting:
+                self._worker_started(ref)
+                continue
+            slot, variant = running.pop(ref)
+            try:
+                result = ray.get(ref)
+            except ray.exceptions.RayActorError as exc:  # the worker died: crash, out of memory, node lost
+                self._worker_died(slot, [variant if r == ref else running.pop(r)[1] for r in on_worker.pop(slot)],
+                                  queue, deaths, on_result, exc)
+                continue
+            except Exception as exc:  # noqa: BLE001 - the result could not come back (serialisation, ...)
+                result = _failed(f"ray task failed: {describe(exc)}")
+            on_worker[slot].remove(ref)
+            on_result(variant, result)
+
+    def _worker_died(self, slot: int, lost: list[Variant], queue: list[Variant], deaths: dict[str, int],
+                     on_result: OnResult, exc: BaseException) -> None:
+        """A worker died with ``lost`` on it (in submission order: the first was running, the rest only queued).
+
+        The running one is tried once more on another worker, then recorded as failed; the
+        queued ones go back to the front of the queue; the slot gets a fresh worker.
+        """
+        running, waiting = lost[0], lost[1:]
+        queue.extend(reversed(waiting))
+        deaths[running.variant_id] = deaths.get(running.variant_id, 0) + 1
+        if deaths[running.variant_id] >= 2:
+            on_result(running, _failed(f"ray worker died (crash, out of memory or node lost) while evaluating this variant: {describe(exc)[:300]}"))
+        else:
+            queue.append(running)
+        self.log(f"ray: a worker died ({type(exc).__name__}); starting another")
+        self._replace_worker(slot)
+
+    def close(self) -> None:
+        """Stop the workers and disconnect (a local instance stops with it)."""
+        ray, self._ray = self._ray, None
+        if ray is None:
+            return
+        self._report_startup()
+        self._actors.clear()
+        self._ready.clear()
+        self._starting.clear()
+        try:
+            ray.shutdown()
+        finally:
+            self._restore_auth_mode()
+
+
+@contextlib.contextmanager
+def study_session(backend: str, workers: int | None, address: str | None) -> Iterator[RaySession | None]:
+    """A study's one Ray session (None for the local backend), closed when the study ends.
+
+    With an address it connects at once, so a refused connection (token, versions) stops
+    the study before its folder is touched; a local instance starts with the first variant.
+    """
+    if backend != "ray":
+        yield None
+        return
+    with RaySession(workers, address) as session:
+        if address is not None:
+            session.connect()
+        yield session
+
+
 def run_ray(
     spec: SweepSpec,
     variants: Sequence[Variant],
@@ -228,46 +538,6 @@ def run_ray(
     run_root: str | None,
     on_result: OnResult,
 ) -> None:
-    """One Ray task per variant on the cluster at ``address`` (a local one if None).
-
-    The driver ships this ``continuum_sim`` package to the workers (runtime_env
-    ``py_modules``), so the cluster runs exactly the driver's code; its Python needs
-    the dependencies (MuJoCo, dm_control, numpy, scipy).
-    """
-    try:
-        import ray
-    except ImportError:
-        raise ConfigError("--backend", "ray is not installed; install it with pip install 'continuum_sim[ray]'") from None
-    import continuum_sim
-
-    runtime_env = {"py_modules": [continuum_sim], "env_vars": {"MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}}
-    init_kwargs: dict[str, Any] = {"runtime_env": runtime_env, "log_to_driver": False}
-    if address is None:
-        init_kwargs.update(num_cpus=workers or default_workers(), include_dashboard=False)
-    else:
-        probe_address(address)  # an unreachable cluster is one line in seconds, not a hang
-        init_kwargs["address"] = address
-    try:
-        with _quiet_stderr():  # Ray's C++ client logs a line per connection retry (20 for an address that is not Ray)
-            ray.init(**init_kwargs)
-    except ConnectionError as exc:
-        raise ConfigError("--address", f"cannot connect to a Ray cluster at {address!r}: {describe(exc)}") from None
-    try:
-        capacity = workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
-        task = ray.remote(num_cpus=1, max_retries=1)(evaluate_payload)
-        queue = list(reversed(variants))
-        running: dict[Any, Variant] = {}
-        while queue or running:
-            while queue and len(running) < 2 * capacity:
-                variant = queue.pop()
-                running[task.remote(payload(spec, variant, run_root))] = variant
-            done, _ = ray.wait(list(running), num_returns=1)
-            for ref in done:
-                variant = running.pop(ref)
-                try:
-                    result = ray.get(ref)
-                except Exception as exc:  # noqa: BLE001 - worker crash, node lost, ...
-                    result = _failed(f"ray task failed: {describe(exc)}")
-                on_result(variant, result)
-    finally:
-        ray.shutdown()
+    """``variants`` through a ``RaySession`` of their own (a driver with several lists keeps one session instead)."""
+    with RaySession(workers, address) as session:
+        session.run(spec, variants, run_root, on_result)

@@ -30,6 +30,7 @@ class SweepResult:
     tables: tuple[Path, ...]
     plots: tuple[Path, ...]
     records: dict[str, dict[str, Any]]
+    worker_startup_s: float | None = None  # Ray: starting the warm workers (not part of any variant's cost)
 
 
 def choose_mode(spec: SweepSpec, backend: Backend, batch: Batch) -> str:
@@ -79,10 +80,8 @@ def run_sweep(
         raise ConfigError("--address", "only applies to --backend ray")
     preflight(backend, workers)
     mode = choose_mode(spec, backend, batch)
-    if backend == "ray" and address is not None:
-        backends.probe_address(address)  # before the folder is touched
     store = ResultStore(out)
-    with store.lock():
+    with backends.study_session(backend, workers, address) as session, store.lock():  # Ray: connected before the folder is touched
         store.prepare(spec)
         write_provenance(store.root, "sweep", spec, spec_path)
         records = store.load()
@@ -97,6 +96,7 @@ def run_sweep(
         n_skipped = len(variants) - len(pending)
         run_root = str(store.root / "runs") if getattr(spec.evaluation, "keep_runs", False) else None
 
+        startup_s = None
         bar = tqdm(total=len(variants), initial=n_skipped, desc="sweep", unit="variant", disable=not progress, dynamic_ncols=True)
         failed_now = 0
 
@@ -111,8 +111,9 @@ def run_sweep(
         try:
             if pending:
                 n_workers = workers or backends.default_workers()
-                if backend == "ray":
-                    backends.run_ray(spec, pending, workers, address, run_root, on_result)
+                if session is not None:
+                    session.run(spec, pending, run_root, on_result)
+                    startup_s = session.worker_startup_s
                 elif mode == "shared":
                     backends.run_shared(spec, pending, n_workers, on_result, progress=progress)
                 else:
@@ -123,4 +124,4 @@ def run_sweep(
         plots = write_plots(spec, records, store.root)
         write_provenance(store.root, "sweep", spec, spec_path)
     n_failed = sum(1 for r in records.values() if r["status"] != "ok")
-    return SweepResult(store.root, len(variants), n_skipped, len(pending), n_failed, mode, tuple(tables), tuple(plots), records)
+    return SweepResult(store.root, len(variants), n_skipped, len(pending), n_failed, mode, tuple(tables), tuple(plots), records, startup_s)
