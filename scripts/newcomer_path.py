@@ -13,7 +13,9 @@ After ``pip install -e ".[test]"`` (which CI has done), in a temporary folder:
    completed or not) and ``python examples/gym_env.py`` on its short stages;
 3. each command the docs show, in a cheap variant: fk, ik, plan, workspace, build-model,
    metrics, report, export --rerun (when rerun-sdk is installed), sweep, validate, synthesize,
-   replay, identify, view (exit 1 without a display).
+   replay, identify, view (exit 1 without a display);
+4. a shipped best design of study 1 (docs/optimize/task_tpe) run again gives its recorded objectives, and the first
+   best design of the gravity-hold study (docs/optimize/quick_tpe) gives them exactly through ``continuum-sim evaluate``.
 
 The README's second command (the tests) is CI's own step. Prints one line per step with its
 wall time; exit 0 when every step did what the docs say, 1 otherwise. CI runs it from
@@ -174,6 +176,13 @@ def walk(work: Path) -> int:
 
     w.step(f"continuum-sim run --config docs/optimize/task_tpe/{best['config']} (the study's objectives)",
            ["continuum-sim", "run", "--config", str(study / best["config"]), "--out", str(design_run), "--quiet"], check=reproduces)
+    # 5. The gravity-hold study's first best design: `continuum-sim evaluate` reproduces its recorded objective
+    # values exactly (exit 1 when one differs), as docs/optimize.md says.
+    quick = ROOT / "docs" / "optimize" / "quick_tpe"
+    quick_best = json.loads((quick / "summary.json").read_text())["best"][0]["config"]
+    w.step(f"continuum-sim evaluate docs/optimize/quick_tpe/{quick_best} (the recorded objectives, exactly)",
+           ["continuum-sim", "evaluate", str(quick / quick_best)],
+           check=lambda r: None if "every objective equals the recorded value exactly" in r.stdout else r.stdout.strip()[-300:])
     w.step("continuum-sim view (no display: exit 1, one line)", ["continuum-sim", "view"], expect=1,
            check=lambda r: None if len(r.stderr.strip().splitlines()) == 1 else r.stderr)
     total = time.perf_counter() - t0

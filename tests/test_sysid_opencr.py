@@ -1,4 +1,4 @@
-"""Issue 27: raw OpenCR-style sessions of another robot (validation/synthetic_tdcr3), robot JSON import,
+"""raw OpenCR-style sessions of another robot (validation/synthetic_tdcr3), robot JSON import,
 per-section calibration fields, and fits that report what they could not do."""
 
 from __future__ import annotations
