@@ -232,6 +232,10 @@ def cmd_status(_: argparse.Namespace) -> int:
     if not bad:
         print(f"results: 0 stale of {len(outs)} stages")
         return 0
+    import yaml
+
+    lock = ROOT / "dvc.lock"
+    locked = set((yaml.safe_load(lock.read_text()) or {}).get("stages", {})) if lock.exists() else set()
     print(f"results: {len(bad)} stale of {len(outs)} stages (regenerate: python scripts/results.py repro)")
     for name, reasons in sorted(bad.items()):
         made = outs.get(name, [])
@@ -239,6 +243,9 @@ def cmd_status(_: argparse.Namespace) -> int:
         pages = [p for p in quoted_by(made) if p not in made]
         if pages:
             print(f"      quoted in {', '.join(pages)}")
+        if name not in locked:
+            print("      never made by the pipeline (no entry in dvc.lock)")
+            continue
         for reason in reasons[:6]:
             print(f"      {reason}")
     return 1
@@ -246,7 +253,8 @@ def cmd_status(_: argparse.Namespace) -> int:
 
 def cmd_repro(args: argparse.Namespace) -> int:
     write_fingerprints()
-    return _dvc("repro", *args.stages, capture=False).returncode
+    # --keep-going: one failing stage does not stop the independent ones (DVC skips only what depends on it)
+    return _dvc("repro", "--keep-going", *args.stages, capture=False).returncode
 
 
 def cmd_fingerprint(_: argparse.Namespace) -> int:

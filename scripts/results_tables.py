@@ -127,13 +127,14 @@ def pareto(folder: str) -> list[str]:
 
     root = ROOT / folder
     summary = _load(root / "summary.json")
-    objectives = [o["metric"] for o in summary["objectives"]]
+    objectives = [o.get("label") or o["metric"] for o in summary["objectives"]]  # pareto.csv's column names
+    extra = [] if "success_probability" in objectives else ["success_probability"]
     variables = [v["path"] for v in summary["variables"]]
     rows = list(csv.DictReader((root / "pareto.csv").open()))
-    head = ["trial", *objectives, "success probability", *variables]
+    head = ["trial", *objectives, *extra, *variables]
     out = ["| " + " | ".join(f"`{h}`" if "." in h else h for h in head) + " |", "|" + "---|" * len(head)]
     for row in rows:
-        cells = [row["trial"], *[f"{float(row[o]):.3g}" for o in objectives], f"{float(row['success_probability']):.2f}",
+        cells = [row["trial"], *[f"{float(row[o]):.3g}" for o in [*objectives, *extra]],
                  *[f"{float(row[v]):.3g}" for v in variables]]
         out.append("| " + " | ".join(cells) + " |")
     return out

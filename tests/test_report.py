@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import base64
+import csv
 import json
 import re
 import shutil
@@ -319,14 +320,17 @@ def test_an_optimize_folder_gets_its_pareto_front_objectives_first_and_a_rerun_t
     assert "<title>Design optimisation (TPE) task_tpe</title>" in text
     summary = json.loads((folder / "summary.json").read_text())
     objectives = [o["label"] for o in summary["objectives"]]
-    for css_id, n_rows in (("pareto", 2), ("best", len(summary["best"]))):
+    with (folder / "pareto.csv").open() as f:
+        front = list(csv.DictReader(f))
+    for css_id, n_rows in (("pareto", len(front)), ("best", len(summary["best"]))):
         table = _table(text, css_id)
         titles = re.findall(r'<th class="[^"]*" title="([^"]*)"', table)
         assert titles[: 1 + len(objectives)] == ["trial", *objectives]
         assert table.count('class="obj"') == len(objectives) and table.count("<tr>") == 1 + n_rows
-    assert '<a href="trial_24.toml">24</a>' in _table(text, "pareto")
+    first = summary["best"][0]
+    assert f'<a href="{first["config"]}">{first["trial"]}</a>' in _table(text, "pareto")
     assert len(_embedded_images(text)) == 2
     rerun, report = _commands(text)
     args = _parses(rerun)
-    assert args.func.__name__ == "cmd_optimize" and args.spec == "SPEC.toml" and args.out == str(folder)
+    assert args.func.__name__ == "cmd_optimize" and args.spec == str(folder / "evaluations" / "spec.toml") and args.out == str(folder)
     assert _parses(report).func.__name__ == "cmd_report"
