@@ -1,7 +1,7 @@
 """A real two-node Ray cluster with token authentication, on loopback: studies through ``--address`` match the local run.
 
 The cluster (a head and a second node, one CPU each) runs in a helper process started by
-this module, every address 127.0.0.1 (its servers listen there only), with
+``scripts/ray_loopback.py``, every address 127.0.0.1 (its servers listen there only), with
 ``RAY_AUTH_MODE=token`` and a token generated here. Each study connects once, gets the
 token through the environment only (``RAY_AUTH_TOKEN``, no ``RAY_AUTH_MODE``: the driver
 turns token mode on itself), and records the same results as the local backend; a wrong
@@ -10,52 +10,20 @@ in a finally, and no process of this cluster may survive.
 """
 
 import json
-import os
-import secrets
-import shutil
-import signal
-import socket
 import subprocess
 import sys
-import tempfile
-import threading
-import time
 from pathlib import Path
 
 import pytest
 
 pytest.importorskip("ray")
-psutil = pytest.importorskip("psutil")  # a dependency of ray
+pytest.importorskip("psutil")  # a dependency of ray; the cluster's clean-up finds its processes with it
 
 ROOT = Path(__file__).resolve().parents[1]
 
-# Two nodes as Ray's own multi-node tests start them (ray.cluster_utils.Cluster does the same, but also writes the
-# address into Ray's default temp folder, which a `ray.init()` elsewhere on this machine would then pick up). The
-# `ray start` command cannot do this on loopback: it replaces 127.0.0.1 with the machine's outward address.
-NODES = """\
-import sys
-from ray._private.node import Node
-from ray._private.parameter import RayParams
-
-port, temp_dir = int(sys.argv[1]), sys.argv[2]
-common = dict(node_ip_address="127.0.0.1", num_cpus=1, num_gpus=0, temp_dir=temp_dir, include_dashboard=False,
-              object_store_memory=80 * 1024 * 1024, min_worker_port=0, max_worker_port=0)
-nodes = []
-try:
-    head = Node(RayParams(**common, gcs_server_port=port), head=True, shutdown_at_exit=True, spawn_reaper=True)
-    nodes.append(head)
-    nodes.append(Node(RayParams(**common, gcs_address=head.gcs_address, include_log_monitor=False, node_manager_port=0,
-                                dashboard_agent_listen_port=None), head=False, shutdown_at_exit=True, spawn_reaper=True))
-    print("READY", head.gcs_address, flush=True)
-    sys.stdin.read()  # until the test closes it
-finally:
-    for node in reversed(nodes):
-        node.kill_all_processes(check_alive=False, allow_graceful=True)
-"""
-
-# Ray maps a loopback address to the machine's outward one unless told this is no multi-node setup; the driver then
-# connects to 127.0.0.1 and finds its node there.
-LOOPBACK = {"RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0", "RAY_USAGE_STATS_ENABLED": "0"}
+# The cluster itself: scripts/ray_loopback.py, which the Ray check and the throughput benchmark also start.
+sys.path.insert(0, str(ROOT / "scripts"))
+from ray_loopback import loopback_cluster  # noqa: E402
 
 SWEEP = """\
 metrics = ["sag_mm", "pcc_error_mm"]
@@ -93,58 +61,12 @@ settle_s = 0.2
 """
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-def _cluster_processes(temp_dir: str) -> list:
-    """This cluster's processes: every Ray process names its session folder (under ``temp_dir``) or the temp dir."""
-    found = []
-    for proc in psutil.process_iter(["pid", "cmdline"]):
-        with_dir = any(temp_dir in part for part in (proc.info["cmdline"] or []))
-        if with_dir and proc.pid != os.getpid():
-            found.append(proc)
-    return found
-
-
 @pytest.fixture(scope="module")
 def cluster():
     """(address, token, environment for a driver): a head and a second node on 127.0.0.1, token authentication on."""
-    token = secrets.token_hex(32)
-    temp_dir = tempfile.mkdtemp(prefix="csray", dir="/tmp")  # short: Ray's socket paths must fit 107 characters
-    port = _free_port()
-    env = dict(os.environ, RAY_AUTH_MODE="token", RAY_AUTH_TOKEN=token, **LOOPBACK)
-    env.pop("RAY_AUTH_TOKEN_PATH", None)
-    env.pop("RAY_ADDRESS", None)
-    helper = subprocess.Popen([sys.executable, "-c", NODES, str(port), temp_dir], env=env, stdin=subprocess.PIPE,
-                              stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, start_new_session=True)
-    try:
-        lines: list[str] = []
-        reader = threading.Thread(target=lambda: lines.append(helper.stdout.readline()), daemon=True)
-        reader.start()
-        reader.join(90)
-        assert lines and lines[0].startswith("READY 127.0.0.1:"), f"the cluster did not start: {lines}"
-        address = lines[0].split()[1]
-        driver = {k: v for k, v in os.environ.items() if not k.startswith("RAY_")}
-        driver.update(LOOPBACK, PYTHONPATH=str(ROOT), RAY_AUTH_TOKEN=token)
-        yield address, token, driver
-    finally:
-        helper.stdin.close()
-        try:
-            helper.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            os.killpg(helper.pid, signal.SIGKILL)
-            helper.wait(timeout=10)
-        deadline = time.monotonic() + 10
-        while _cluster_processes(temp_dir) and time.monotonic() < deadline:
-            time.sleep(0.2)
-        strays = _cluster_processes(temp_dir)
-        for proc in strays:  # only this cluster's processes: they name its temp folder
-            proc.kill()
-        shutil.rmtree(temp_dir, ignore_errors=True)
-        assert not strays, f"Ray processes outlived the cluster: {[p.info['cmdline'][:1] for p in strays]}"
+    with loopback_cluster(cpus_per_node=1, start_timeout=90) as started:
+        yield started.address, started.env["RAY_AUTH_TOKEN"], started.env
+    assert not started.strays_killed, f"Ray processes outlived the cluster: pids {started.strays_killed}"
 
 
 def _cli(command: str, spec: Path, out: Path, env: dict, *extra: str) -> subprocess.CompletedProcess:
