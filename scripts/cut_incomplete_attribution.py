@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from variant_runs import _fmt as _f  # the variant tables' cell format (scripts/variant_runs.py)
 
 from continuum_sim.configio import replace_path
 from continuum_sim.model.options import model_geometry
@@ -280,16 +281,6 @@ def run_variant(name: str, overrides: dict[str, Any], keep: Path) -> dict[str, A
     row["at_run_end"] = bridge_analysis(obs.at_end, obs, line, plate.kerf_width, tr)
     row["error_components"] = error_components(tr, plan)
     return row
-
-
-def _f(v: Any, d: int = 2) -> str:
-    if v is None:
-        return "–"
-    if isinstance(v, bool):
-        return "yes" if v else "no"
-    if isinstance(v, float):
-        return f"{v:.{d}f}"
-    return str(v)
 
 
 def markdown(rows: list[dict[str, Any]]) -> str:
